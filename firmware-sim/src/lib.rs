@@ -1,0 +1,1 @@
+//! `dips-firmware-sim`: the kernel as the hand's controller runs it.

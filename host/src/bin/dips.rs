@@ -1,0 +1,5 @@
+//! The `dips` binary.
+
+fn main() -> anyhow::Result<()> {
+    dips_host::cli::main()
+}

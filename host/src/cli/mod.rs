@@ -1,0 +1,22 @@
+//! The `dips` command line (`CONTRACTS.md` §5). Each command group lives in its own module.
+
+use clap::{Parser, Subcommand};
+
+/// DIPS: diffusion-informed probabilistic contact search for multi-finger manipulation.
+#[derive(Debug, Parser)]
+#[command(name = "dips", version, about)]
+pub struct Cli {
+    /// The command to run.
+    #[command(subcommand)]
+    pub command: Command,
+}
+
+/// Top-level commands.
+#[derive(Debug, Subcommand)]
+pub enum Command {}
+
+/// Parse the process arguments and run the command.
+pub fn main() -> anyhow::Result<()> {
+    let cli = Cli::parse();
+    match cli.command {}
+}

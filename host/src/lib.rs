@@ -1,0 +1,3 @@
+//! `dips-host`: the std side of DIPS.
+
+pub mod cli;

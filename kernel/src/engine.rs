@@ -1,0 +1,96 @@
+//! The boundary between the diffusion sampler / discriminator scorer and the network engines
+//! that evaluate the models (the no_std interpreter in this crate, tract on the host).
+//!
+//! Tensors are flat, row-major `f32` slices in the layout of the model contract
+//! (`CONTRACTS.md` §3): `x` is `[batch, horizon, dim]`, `t` and `cond_mask` are `[batch]`,
+//! `context` is `[batch, fingers]`, `eps` is `[batch, horizon, dim]`, `p_real` is `[batch]`.
+//! Sizes are run-time values so a model of other dimensions needs no recompilation.
+
+/// Dimensions a model was exported with (contract metadata `dips.horizon`, ...).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct ModelDims {
+    /// Rows per trajectory segment, `T = H + 1`.
+    pub horizon: usize,
+    /// State columns per row (angles that wrap count twice: cos and sin).
+    pub state_dim: usize,
+    /// Action columns per row.
+    pub action_dim: usize,
+    /// Fingers in the contact-mode vector (`context` width).
+    pub fingers: usize,
+    /// Diffusion steps the denoiser was trained with (0 for a discriminator).
+    pub diffusion_steps: usize,
+}
+
+impl ModelDims {
+    /// Columns per row, `D = state_dim + action_dim`.
+    pub const fn dim(&self) -> usize {
+        self.state_dim + self.action_dim
+    }
+
+    /// Floats in one trajectory, `T * D`.
+    pub const fn floats_per_trajectory(&self) -> usize {
+        self.horizon * self.dim()
+    }
+}
+
+/// Per-column normalization of the contract: `normalized = (raw - mean) / std`.
+#[derive(Debug, Clone, Copy)]
+pub struct Normalization<'a> {
+    /// `dips.norm_mean`, one entry per column.
+    pub mean: &'a [f32],
+    /// `dips.norm_std`, one entry per column.
+    pub std: &'a [f32],
+}
+
+/// An ε-predicting denoiser (contract role `denoiser`).
+pub trait DenoiserEngine {
+    /// The engine's error type.
+    type Error: core::fmt::Debug;
+
+    /// The dimensions the model was exported with.
+    fn dims(&self) -> ModelDims;
+
+    /// The model's column normalization.
+    fn normalization(&self) -> Normalization<'_>;
+
+    /// The largest batch one call accepts (`usize::MAX` when unbounded).
+    fn max_batch(&self) -> usize;
+
+    /// Predict the noise for a batch: `x` `[batch,T,D]` normalized noisy trajectories,
+    /// `t` `[batch]` step indices as floats, `context` `[batch,F]` contact modes (±1),
+    /// `cond_mask` `[batch]` (1 conditioned, 0 unconditional). Writes `eps` `[batch,T,D]`.
+    fn predict_eps(
+        &mut self,
+        batch: usize,
+        x: &[f32],
+        t: &[f32],
+        context: &[f32],
+        cond_mask: &[f32],
+        eps: &mut [f32],
+    ) -> Result<(), Self::Error>;
+}
+
+/// A discriminator Ψ (contract role `discriminator`).
+pub trait DiscriminatorEngine {
+    /// The engine's error type.
+    type Error: core::fmt::Debug;
+
+    /// The dimensions the model was exported with.
+    fn dims(&self) -> ModelDims;
+
+    /// The model's column normalization.
+    fn normalization(&self) -> Normalization<'_>;
+
+    /// The largest batch one call accepts (`usize::MAX` when unbounded).
+    fn max_batch(&self) -> usize;
+
+    /// Score a batch of normalized clean trajectories `x` `[batch,T,D]` with their contact
+    /// modes `context` `[batch,F]`; writes `p_real` `[batch]`, each in (0, 1).
+    fn p_real(
+        &mut self,
+        batch: usize,
+        x: &[f32],
+        context: &[f32],
+        p_real: &mut [f32],
+    ) -> Result<(), Self::Error>;
+}

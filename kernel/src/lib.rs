@@ -1,0 +1,16 @@
+//! `dips-kernel`: the part of DIPS that runs on the hand's controller.
+//!
+//! `#![no_std]` without `alloc`: every buffer has a capacity fixed by const generics or is
+//! provided by the caller, and running out of room is reported as a status, never a panic.
+//! See `ARCHITECTURE.md` at the workspace root for the crate map and data flow.
+#![no_std]
+#![forbid(unsafe_code)]
+#![cfg_attr(
+    not(test),
+    deny(clippy::unwrap_used, clippy::expect_used, clippy::panic)
+)]
+
+#[cfg(test)]
+extern crate std;
+
+pub mod engine;

@@ -1,0 +1,1 @@
+//! End-to-end checks across the DIPS crates; the tests live in `tests/tests/`.
