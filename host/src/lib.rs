@@ -1,3 +1,5 @@
 //! `dips-host`: the std side of DIPS.
 
 pub mod cli;
+pub mod kinematics;
+pub mod scenes;
