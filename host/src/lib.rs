@@ -1,5 +1,6 @@
 //! `dips-host`: the std side of DIPS.
 
 pub mod cli;
+pub mod geometry;
 pub mod kinematics;
 pub mod scenes;
