@@ -4,3 +4,4 @@ pub mod cli;
 pub mod geometry;
 pub mod kinematics;
 pub mod scenes;
+pub mod world;
