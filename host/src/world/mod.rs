@@ -49,6 +49,8 @@ pub struct WorldParams {
     pub gravity: f64,
     /// Keep the task joints within their limits with linear constraints.
     pub enforce_joint_limits: bool,
+    /// Clarabel's interior-point iteration limit per sub-step.
+    pub solver_max_iter: u32,
 }
 
 impl WorldParams {
@@ -71,6 +73,7 @@ impl WorldParams {
             early_stop: 1e-6,
             gravity: GRAVITY,
             enforce_joint_limits: true,
+            solver_max_iter: 100,
         }
     }
 
@@ -259,7 +262,7 @@ pub enum WorldError {
         /// The value.
         value: f64,
     },
-    /// Clarabel did not solve a sub-step; the world keeps the state from before that sub-step.
+    /// Clarabel did not solve a sub-step; the world is left as it was before the action.
     #[error("contact solve failed at sub-step {substep}: Clarabel status {status}")]
     Solver {
         /// Sub-step index within the action.
@@ -306,7 +309,7 @@ impl World {
             SceneKind::Screwdriver => (Body::screwdriver(), None),
             SceneKind::Card => (Body::card(), Some(Body::table())),
         };
-        World {
+        let mut world = World {
             scene,
             base: scene.hand_base(),
             hand,
@@ -316,6 +319,45 @@ impl World {
             object_body,
             table,
             last_contacts: Vec::new(),
+        };
+        world.resolve_penetration();
+        world
+    }
+
+    /// Move penetrating task fingertips out of the object (and table) along the contact normal
+    /// by a few damped least-squares IK steps, leaving the object where it is. Isaac resolves
+    /// the reset's overlaps by running physics; doing it kinematically keeps the object at its
+    /// nominal start. [`World::new`] calls this; call it again after [`World::set_state`] if
+    /// the new state may overlap.
+    pub fn resolve_penetration(&mut self) {
+        let r = self.hand.tip_radius;
+        for f in self.scene.task_fingers() {
+            for _ in 0..20 {
+                let q = self.joints[f.index()];
+                let c = self.hand.tip_center(&self.base, *f, &q);
+                let mut worst: Option<(f64, Vector3<f64>)> = None;
+                let mut consider = |phi: f64, n: Vector3<f64>| {
+                    if phi < 0.0 && worst.is_none_or(|(w, _)| phi < w) {
+                        worst = Some((phi, n));
+                    }
+                };
+                let on_obj = self.object_body.sphere_contact(&self.object.pose(), &c, r, 0.0);
+                if let Some(k) = on_obj {
+                    consider(k.phi, k.normal);
+                }
+                if let Some(t) = &self.table
+                    && let Some(k) = t.sphere_contact(&Isometry3::identity(), &c, r, 0.0)
+                {
+                    consider(k.phi, k.normal);
+                }
+                let Some((phi, n)) = worst else { break };
+                if phi > -1e-7 {
+                    break;
+                }
+                let dq = self.hand.tip_ik_step(&self.base, *f, &q, &(n * (-phi + 1e-6)), 1e-3);
+                let next: [f64; 4] = std::array::from_fn(|j| q[j] + dq[j]);
+                self.joints[f.index()] = self.hand.clamp_to_limits(*f, &next);
+            }
         }
     }
 
@@ -474,8 +516,17 @@ impl World {
             iterations: 0,
             flags: Vec::new(),
         };
+        let (joints0, object0, contacts0) = (self.joints, self.object.clone(), self.last_contacts.clone());
         for substep in 0..self.params.substeps.max(1) {
-            let (dx, contacts, iters, status) = self.solve_substep(&q_cmd, substep)?;
+            let (dx, contacts, iters, status) = match self.solve_substep(&q_cmd, substep) {
+                Ok(v) => v,
+                Err(e) => {
+                    self.joints = joints0;
+                    self.object = object0;
+                    self.last_contacts = contacts0;
+                    return Err(e);
+                }
+            };
             report.substeps_run += 1;
             report.iterations += iters;
             if status == SolverStatus::AlmostSolved {
@@ -613,7 +664,8 @@ impl World {
             Vec::new()
         };
         let rows: Vec<socp::ConeRow> = cands.iter().map(|c| c.row.clone()).collect();
-        let sol = socp::solve(&socp::Program { p: &p, c: &c, cones: &rows, bounds: &bounds })
+        let prog = socp::Program { p: &p, c: &c, cones: &rows, bounds: &bounds, max_iter: self.params.solver_max_iter };
+        let sol = socp::solve(&prog)
             .map_err(WorldError::Setup)?;
         match sol.status {
             SolverStatus::Solved | SolverStatus::AlmostSolved => {}

@@ -35,6 +35,8 @@ pub(crate) struct Program<'a> {
     pub cones: &'a [ConeRow],
     /// `(lower, upper)` bounds on the first `bounds.len()` variables.
     pub bounds: &'a [(f64, f64)],
+    /// Interior-point iteration limit.
+    pub max_iter: u32,
 }
 
 /// Solution of one program.
@@ -124,7 +126,7 @@ pub(crate) fn solve(prog: &Program<'_>) -> Result<Solution, String> {
     let settings = DefaultSettingsBuilder::default()
         .verbose(false)
         .presolve_enable(false)
-        .max_iter(100)
+        .max_iter(prog.max_iter)
         .build()
         .map_err(|e| format!("settings: {e:?}"))?;
     let mut solver =
@@ -159,7 +161,7 @@ mod tests {
         let mut jac = Matrix3xX::zeros(3);
         jac.fill_with_identity();
         let cone = ConeRow { phi: 0.0, mu: 0.5, normal: Vector3::z(), jac };
-        let sol = solve(&Program { p: &p, c: &c, cones: &[cone], bounds: &[] }).unwrap();
+        let sol = solve(&Program { p: &p, c: &c, cones: &[cone], bounds: &[], max_iter: 100 }).unwrap();
         assert_eq!(sol.status, SolverStatus::Solved);
         // Normal force k·0.01 = 1 N on the point (+z); the tangential pull k·0.004 = 0.4 N is
         // inside the friction limit 0.5 N, so the point sticks and friction carries all of it.
@@ -172,7 +174,7 @@ mod tests {
         let mut jac = Matrix3xX::zeros(3);
         jac.fill_with_identity();
         let cone = ConeRow { phi: 0.0, mu: 0.5, normal: Vector3::z(), jac };
-        let sol = solve(&Program { p: &p, c: &c, cones: &[cone], bounds: &[] }).unwrap();
+        let sol = solve(&Program { p: &p, c: &c, cones: &[cone], bounds: &[], max_iter: 100 }).unwrap();
         assert!(sol.x[0] > 1e-3, "{:?}", sol.x);
         assert!((sol.x[2] - 0.5 * sol.x[0]).abs() < 1e-6, "{:?}", sol.x);
         let f = sol.forces_on_a[0];
@@ -183,7 +185,7 @@ mod tests {
     fn bounds_are_respected() {
         let p = DMatrix::identity(2, 2);
         let c = [-1.0, 1.0];
-        let sol = solve(&Program { p: &p, c: &c, cones: &[], bounds: &[(-0.5, 0.5), (-0.2, 0.2)] }).unwrap();
+        let sol = solve(&Program { p: &p, c: &c, cones: &[], bounds: &[(-0.5, 0.5), (-0.2, 0.2)], max_iter: 100 }).unwrap();
         assert_eq!(sol.status, SolverStatus::Solved);
         assert!((sol.x[0] - 0.5).abs() < 1e-6 && (sol.x[1] + 0.2).abs() < 1e-6, "{:?}", sol.x);
     }
