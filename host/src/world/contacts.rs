@@ -32,6 +32,8 @@ pub struct ContactReport {
 pub(crate) struct Candidate {
     pub finger: &'static str,
     pub part: &'static str,
+    /// Stable identity across sub-steps: (pushing body, touched body, index within the pair).
+    pub key: (&'static str, &'static str, usize),
     pub point: Point3<f64>,
     pub row: ConeRow,
 }
@@ -108,6 +110,7 @@ pub(crate) fn candidates(inp: &ContactInputs<'_>) -> Vec<Candidate> {
             out.push(Candidate {
                 finger: inp.finger_names[k],
                 part: c.part,
+                key: (inp.finger_names[k], inp.object.name, 0),
                 point: c.point_on_body,
                 row: ConeRow { phi: c.phi, mu: inp.finger_friction, normal: c.normal, jac },
             });
@@ -121,13 +124,14 @@ pub(crate) fn candidates(inp: &ContactInputs<'_>) -> Vec<Candidate> {
             out.push(Candidate {
                 finger: inp.finger_names[k],
                 part: c.part,
+                key: (inp.finger_names[k], table.name, 0),
                 point: c.point_on_body,
                 row: ConeRow { phi: c.phi, mu: inp.finger_table_friction, normal: c.normal, jac },
             });
         }
     }
     if inp.scene == SceneKind::Card && inp.table.is_some() {
-        for p in card_table_vertices(inp.object_pose) {
+        for (index, p) in card_table_vertices(inp.object_pose).into_iter().enumerate() {
             let phi = p.z - card::TABLE_TOP;
             if phi > inp.margin {
                 continue;
@@ -137,6 +141,7 @@ pub(crate) fn candidates(inp: &ContactInputs<'_>) -> Vec<Candidate> {
             out.push(Candidate {
                 finger: "card",
                 part: "table",
+                key: ("card", "table", index),
                 point: Point3::new(p.x, p.y, card::TABLE_TOP),
                 row: ConeRow { phi, mu: inp.table_friction, normal: Vector3::z(), jac },
             });

@@ -30,6 +30,10 @@ pub struct WorldParams {
     pub substeps: usize,
     /// Joint stiffness of the task fingers (N·m/rad).
     pub kp: f64,
+    /// Joint damping of the task fingers (N·m·s/rad); Isaac's PD drive uses 1.0. It enters as
+    /// `D/h` on the joint diagonal, so a free finger closes `kp/(kp + D/h)` of its remaining
+    /// error per sub-step: a first-order lag with time constant `D/kp`, as in Isaac.
+    pub joint_damping: f64,
     /// Mass-regularisation scale `s`: the largest object mass entry becomes `kp/s` (qsim's
     /// `unactuated_mass_scale`).
     pub mass_scale: f64,
@@ -49,21 +53,51 @@ pub struct WorldParams {
     pub gravity: f64,
     /// Keep the task joints within their limits with linear constraints.
     pub enforce_joint_limits: bool,
-    /// Clarabel's interior-point iteration limit per sub-step.
+    /// Clarabel's interior-point iteration limit per solve.
     pub solver_max_iter: u32,
+    /// How friction is formulated.
+    pub friction_model: FrictionModel,
+    /// Most solves per sub-step for [`FrictionModel::Staggered`].
+    pub staggered_iterations: usize,
+    /// Staggered iterations stop when no normal force changes by more than
+    /// `staggered_tolerance + staggered_relative_tolerance · max normal force` (N).
+    pub staggered_tolerance: f64,
+    /// Relative part of the staggered stopping rule.
+    pub staggered_relative_tolerance: f64,
+}
+
+/// Friction formulation of the contact step.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum FrictionModel {
+    /// One Anitescu cone per contact (spec §1.2, qsim's SOCP). Convex and one solve per
+    /// sub-step, but sliding forces a separation of μ·slip: a finger dragged across a light
+    /// object without pressing drags the object along (measured in `docs/world.md`).
+    Anitescu,
+    /// Non-penetration rows plus maximum-dissipation friction bounded by μ times a normal
+    /// force estimate, re-solved with the new normal forces until they agree (staggered
+    /// projections, warm-started from the previous sub-step), with the contact geometry
+    /// re-linearised at each iterate. No hover; a few solves per sub-step. Converges for
+    /// moderate μ; where it does not, the step is flagged.
+    Staggered,
 }
 
 impl WorldParams {
     /// Defaults for a scene (spec §3 and §4).
     pub fn for_scene(scene: SceneKind) -> WorldParams {
-        let (damping, table) = match scene {
-            SceneKind::Screwdriver => (screwdriver::DAMPING, 0.0),
-            SceneKind::Card => ([card::DAMPING; 3], card::TABLE_FRICTION),
+        // Friction: the card (μ ≤ 1, a 10 g object) needs the hover-free staggered form, or a
+        // grazing finger drags it; the screwdriver (μ = 2.5) uses the single convex Anitescu
+        // cone, because staggered iterations can diverge there (wedging: more friction needs
+        // more normal force). See docs/world.md.
+        let (damping, table, friction_model) = match scene {
+            SceneKind::Screwdriver => (screwdriver::DAMPING, 0.0, FrictionModel::Anitescu),
+            SceneKind::Card => ([card::DAMPING; 3], card::TABLE_FRICTION, FrictionModel::Staggered),
         };
         WorldParams {
             action_duration: 1.0,
             substeps: 10,
             kp: scene.kp(),
+            joint_damping: 1.0,
             mass_scale: 5.0,
             contact_margin: 0.02,
             finger_friction: scene.finger_friction(),
@@ -74,6 +108,10 @@ impl WorldParams {
             gravity: GRAVITY,
             enforce_joint_limits: true,
             solver_max_iter: 100,
+            friction_model,
+            staggered_iterations: 12,
+            staggered_tolerance: 1e-3,
+            staggered_relative_tolerance: 0.02,
         }
     }
 
@@ -212,6 +250,13 @@ pub enum StepFlag {
     },
     /// The screwdriver's roll or pitch passed its ±1.57 joint limit (not modelled as a stop).
     TiltLimit,
+    /// Staggered friction iterations hit their limit before the normal forces settled.
+    FrictionNotConverged {
+        /// Sub-step index within the action.
+        substep: usize,
+        /// Largest normal-force change in the last iteration (N).
+        change: f64,
+    },
 }
 
 /// What one action did.
@@ -223,8 +268,10 @@ pub struct StepReport {
     pub contacts: Vec<ContactReport>,
     /// Deepest penetration among fingertip/object/table pairs after the action (m, ≥ 0).
     pub max_penetration: f64,
-    /// Interior-point iterations summed over the sub-steps.
+    /// Interior-point iterations summed over all solves.
     pub iterations: u32,
+    /// Clarabel solves (more than one per sub-step with staggered friction).
+    pub solves: u32,
     /// Warnings that did not stop the step.
     pub flags: Vec<StepFlag>,
 }
@@ -287,7 +334,11 @@ pub struct World {
     object_body: Body,
     table: Option<Body>,
     last_contacts: Vec<ContactReport>,
+    /// Normal forces of the last sub-step by contact key (warm start for staggered friction).
+    normal_memory: Vec<(ContactKey, f64)>,
 }
+
+type ContactKey = (&'static str, &'static str, usize);
 
 fn check_finite(what: &'static str, v: &[f64]) -> Result<(), WorldError> {
     match v.iter().position(|x| !x.is_finite()) {
@@ -319,6 +370,7 @@ impl World {
             object_body,
             table,
             last_contacts: Vec::new(),
+            normal_memory: Vec::new(),
         };
         world.resolve_penetration();
         world
@@ -423,6 +475,7 @@ impl World {
         let a = self.scene.action_dim();
         self.object = ObjectState::from_coords(self.scene, [state[a], state[a + 1], state[a + 2]]);
         self.last_contacts.clear();
+        self.normal_memory.clear();
         Ok(())
     }
 
@@ -436,6 +489,7 @@ impl World {
     /// Set the object's configuration directly.
     pub fn set_object(&mut self, object: ObjectState) {
         self.object = object;
+        self.normal_memory.clear();
     }
 
     /// Task validity of the current state (see [`ObjectState::valid`]).
@@ -514,26 +568,30 @@ impl World {
             contacts: Vec::new(),
             max_penetration: 0.0,
             iterations: 0,
+            solves: 0,
             flags: Vec::new(),
         };
-        let (joints0, object0, contacts0) = (self.joints, self.object.clone(), self.last_contacts.clone());
+        let saved = (self.joints, self.object.clone(), self.last_contacts.clone(), self.normal_memory.clone());
         for substep in 0..self.params.substeps.max(1) {
-            let (dx, contacts, iters, status) = match self.solve_substep(&q_cmd, substep) {
+            let SubstepResult { dx, contacts, iters, solves, status, unconverged, memory } = match self.solve_substep(&q_cmd, substep) {
                 Ok(v) => v,
                 Err(e) => {
-                    self.joints = joints0;
-                    self.object = object0;
-                    self.last_contacts = contacts0;
+                    (self.joints, self.object, self.last_contacts, self.normal_memory) = saved;
                     return Err(e);
                 }
             };
             report.substeps_run += 1;
             report.iterations += iters;
+            report.solves += solves;
             if status == SolverStatus::AlmostSolved {
                 report.flags.push(StepFlag::ReducedAccuracy { substep });
             }
+            if let Some(change) = unconverged {
+                report.flags.push(StepFlag::FrictionNotConverged { substep, change });
+            }
             self.apply_increment(&dx);
             self.last_contacts = contacts;
+            self.normal_memory = memory;
             let norm = dx.iter().map(|v| v * v).sum::<f64>().sqrt();
             if norm < self.params.early_stop {
                 break;
@@ -548,14 +606,6 @@ impl World {
             }
         }
         Ok(report)
-    }
-
-    fn task_frames(&self) -> Vec<FingerFrames> {
-        self.scene
-            .task_fingers()
-            .iter()
-            .map(|f| self.hand.finger_frames(&self.base, *f, &self.joints[f.index()]))
-            .collect()
     }
 
     /// Object block of P (regularised mass plus damping over h) and the gravity force term.
@@ -607,22 +657,28 @@ impl World {
         }
     }
 
-    #[allow(clippy::type_complexity)]
-    fn solve_substep(
-        &self,
-        q_cmd: &[f64],
-        substep: usize,
-    ) -> Result<(Vec<f64>, Vec<ContactReport>, u32, SolverStatus), WorldError> {
+    /// Contact candidates at a trial configuration (the start of the sub-step plus `guess`),
+    /// with φ shifted so the rows constrain the increment measured from the sub-step start:
+    /// `φ(trial) + nᵀJ (δq − guess) ≥ 0`.
+    fn candidates_at(&self, guess: &[f64]) -> Vec<contacts::Candidate> {
         let fingers = self.scene.task_fingers();
-        let n_a = 4 * fingers.len();
-        let frames = self.task_frames();
+        let mut joints = self.joints;
+        for (k, f) in fingers.iter().enumerate() {
+            for j in 0..4 {
+                joints[f.index()][j] += guess[4 * k + j];
+            }
+        }
+        let mut object = self.object.clone();
+        object.apply(&guess[4 * fingers.len()..]);
+        let frames: Vec<FingerFrames> =
+            fingers.iter().map(|f| self.hand.finger_frames(&self.base, *f, &joints[f.index()])).collect();
         let names: Vec<&'static str> = fingers.iter().map(|f| f.name()).collect();
-        let pose = self.object.pose();
-        let dofs = match self.object {
+        let pose = object.pose();
+        let dofs = match object {
             ObjectState::Screwdriver { .. } => contacts::ObjectDofs::Pivot { pivot: screwdriver::pivot() },
             ObjectState::Card { pose, .. } => contacts::ObjectDofs::Free { origin: Point3::from(pose.translation.vector) },
         };
-        let cands = contacts::candidates(&contacts::ContactInputs {
+        let mut cands = contacts::candidates(&contacts::ContactInputs {
             scene: self.scene,
             hand: &self.hand,
             frames: &frames,
@@ -636,16 +692,33 @@ impl World {
             finger_table_friction: self.params.finger_table_friction,
             table_friction: self.params.table_friction,
         });
-        let n = n_a + dofs.count();
+        if guess.iter().any(|g| *g != 0.0) {
+            let g = nalgebra::DVector::from_column_slice(guess);
+            for cand in &mut cands {
+                let moved = (cand.row.normal.transpose() * (&cand.row.jac * &g))[0];
+                cand.row.phi -= moved;
+            }
+        }
+        cands
+    }
+
+    fn solve_substep(&self, q_cmd: &[f64], substep: usize) -> Result<SubstepResult, WorldError> {
+        let fingers = self.scene.task_fingers();
+        let n_a = 4 * fingers.len();
+        let n_u = match self.object {
+            ObjectState::Screwdriver { .. } => 3,
+            ObjectState::Card { .. } => 6,
+        };
+        let n = n_a + n_u;
         let (block, force_u) = self.object_block();
         let mut p = DMatrix::zeros(n, n);
         let mut c = vec![0.0; n];
         let q_now = self.task_joints();
         for i in 0..n_a {
-            p[(i, i)] = self.params.kp;
+            p[(i, i)] = self.params.kp + self.params.joint_damping / self.params.h();
             c[i] = -self.params.kp * (q_cmd[i] - q_now[i]);
         }
-        p.view_mut((n_a, n_a), (dofs.count(), dofs.count())).copy_from(&block);
+        p.view_mut((n_a, n_a), (n_u, n_u)).copy_from(&block);
         for (i, f) in force_u.iter().enumerate() {
             c[n_a + i] = -f;
         }
@@ -663,17 +736,111 @@ impl World {
         } else {
             Vec::new()
         };
-        let rows: Vec<socp::ConeRow> = cands.iter().map(|c| c.row.clone()).collect();
-        let prog = socp::Program { p: &p, c: &c, cones: &rows, bounds: &bounds, max_iter: self.params.solver_max_iter };
-        let sol = socp::solve(&prog)
-            .map_err(WorldError::Setup)?;
-        match sol.status {
-            SolverStatus::Solved | SolverStatus::AlmostSolved => {}
-            other => return Err(WorldError::Solver { substep, status: format!("{other:?}") }),
-        }
-        if sol.x.iter().any(|v| !v.is_finite()) {
-            return Err(WorldError::Solver { substep, status: "non-finite solution".into() });
-        }
+        let check = |sol: &socp::Solution| -> Result<(), WorldError> {
+            match sol.status {
+                SolverStatus::Solved | SolverStatus::AlmostSolved => {}
+                other => return Err(WorldError::Solver { substep, status: format!("{other:?}") }),
+            }
+            if sol.x.iter().chain(sol.normal_forces.iter()).any(|v| !v.is_finite()) {
+                return Err(WorldError::Solver { substep, status: "non-finite solution".into() });
+            }
+            Ok(())
+        };
+        let mut iters = 0;
+        let mut solves = 0;
+        let mut unconverged = None;
+        let mut worst_status = SolverStatus::Solved;
+        let (sol, cands) = match self.params.friction_model {
+            FrictionModel::Anitescu => {
+                let cands = self.candidates_at(&vec![0.0; n]);
+                let rows: Vec<socp::ConeRow> = cands.iter().map(|c| c.row.clone()).collect();
+                let prog = socp::Program {
+                    p: &p,
+                    c: &c,
+                    cones: &rows,
+                    bounds: &bounds,
+                    max_iter: self.params.solver_max_iter,
+                    friction: socp::FrictionForm::Anitescu,
+                };
+                let sol = socp::solve(&prog).map_err(WorldError::Setup)?;
+                check(&sol)?;
+                iters += sol.iterations;
+                solves += 1;
+                worst_status = sol.status;
+                (sol, cands)
+            }
+            FrictionModel::Staggered => {
+                // Two coupled fixed points, iterated together:
+                // - the contact geometry is re-linearised at the latest predicted configuration
+                //   (sequential convex programming on φ(q + δq) ≥ 0), and
+                // - the friction bounds μN use the latest normal forces N (staggered
+                //   projections), relaxed with Aitken's dynamic factor: the plain iteration
+                //   alternates (ratio ≈ −0.5) on the card and creeps (≈ +0.3) on the screwdriver.
+                let mut guess = vec![0.0; n];
+                let mut known: Vec<(ContactKey, f64)> = self.normal_memory.clone();
+                let mut omega: f64 = 1.0;
+                let mut prev: Option<(Vec<ContactKey>, Vec<f64>)> = None;
+                let mut last = None;
+                for _ in 0..self.params.staggered_iterations.max(1) {
+                    let cands = self.candidates_at(&guess);
+                    let keys: Vec<ContactKey> = cands.iter().map(|c| c.key).collect();
+                    let normals: Vec<f64> = keys
+                        .iter()
+                        .map(|key| known.iter().find(|(k, _)| k == key).map_or(0.0, |(_, f)| *f))
+                        .collect();
+                    let rows: Vec<socp::ConeRow> = cands.iter().map(|c| c.row.clone()).collect();
+                    let prog = socp::Program {
+                        p: &p,
+                        c: &c,
+                        cones: &rows,
+                        bounds: &bounds,
+                        max_iter: self.params.solver_max_iter,
+                        friction: socp::FrictionForm::Lagged(&normals),
+                    };
+                    let sol = socp::solve(&prog).map_err(WorldError::Setup)?;
+                    check(&sol)?;
+                    iters += sol.iterations;
+                    solves += 1;
+                    if sol.status == SolverStatus::AlmostSolved {
+                        worst_status = SolverStatus::AlmostSolved;
+                    }
+                    let residual: Vec<f64> =
+                        sol.normal_forces.iter().zip(&normals).map(|(g, n)| g.max(0.0) - n).collect();
+                    let change = residual.iter().fold(0.0, |m: f64, r| m.max(r.abs()));
+                    let largest = sol.normal_forces.iter().copied().fold(0.0, f64::max);
+                    let tol = self.params.staggered_tolerance + self.params.staggered_relative_tolerance * largest;
+                    let step: f64 = sol.x.iter().zip(&guess).map(|(a, b)| (a - b).powi(2)).sum::<f64>().sqrt();
+                    let size: f64 = sol.x.iter().map(|a| a * a).sum::<f64>().sqrt();
+                    let moved = step > 1e-6 + 1e-2 * size;
+                    unconverged = (change > tol || moved).then_some(change);
+                    guess.clone_from(&sol.x);
+                    let done = unconverged.is_none();
+                    last = Some((sol, cands));
+                    if done {
+                        break;
+                    }
+                    match &prev {
+                        Some((prev_keys, prev_res)) if *prev_keys == keys => {
+                            let dr: Vec<f64> = residual.iter().zip(prev_res).map(|(a, b)| a - b).collect();
+                            let denom: f64 = dr.iter().map(|d| d * d).sum();
+                            if denom > 0.0 {
+                                let num: f64 = prev_res.iter().zip(&dr).map(|(a, b)| a * b).sum();
+                                omega = (-omega * num / denom).clamp(0.4, 1.5);
+                            }
+                        }
+                        _ => omega = 1.0,
+                    }
+                    known = keys
+                        .iter()
+                        .zip(normals.iter().zip(&residual))
+                        .map(|(k, (n, r))| (*k, (n + omega * r).max(0.0)))
+                        .collect();
+                    prev = Some((keys, residual));
+                }
+                last.ok_or_else(|| WorldError::Setup("no staggered iteration ran".into()))?
+            }
+        };
+        let memory = cands.iter().zip(&sol.normal_forces).map(|(cand, f)| (cand.key, f.max(0.0))).collect();
         let reports = cands
             .iter()
             .zip(&sol.forces_on_a)
@@ -690,7 +857,7 @@ impl World {
                 }
             })
             .collect();
-        Ok((sol.x, reports, sol.iterations, sol.status))
+        Ok(SubstepResult { dx: sol.x, contacts: reports, iters, solves, status: worst_status, unconverged, memory })
     }
 
     fn apply_increment(&mut self, dx: &[f64]) {
@@ -702,6 +869,17 @@ impl World {
         }
         self.object.apply(&dx[4 * fingers.len()..]);
     }
+}
+
+/// What one sub-step produced.
+struct SubstepResult {
+    dx: Vec<f64>,
+    contacts: Vec<ContactReport>,
+    iters: u32,
+    solves: u32,
+    status: SolverStatus,
+    unconverged: Option<f64>,
+    memory: Vec<(ContactKey, f64)>,
 }
 
 /// qsim's mass scaling: `ε` such that the largest mass entry becomes `kp / s` (spec §1.1).
