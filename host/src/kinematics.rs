@@ -467,7 +467,8 @@ mod tests {
         let hand = HandModel::allegro_v4();
         let base = Isometry3::identity();
         let q0 = [0.0, 0.5, 0.5, 0.5];
-        let target = hand.tip_center(&base, Finger::Middle, &q0) + Vector3::new(0.01, -0.005, 0.004);
+        let target =
+            hand.tip_center(&base, Finger::Middle, &q0) + Vector3::new(0.01, -0.005, 0.004);
         let q = hand.solve_tip_ik(&base, Finger::Middle, &q0, &target, 20);
         assert!((hand.tip_center(&base, Finger::Middle, &q) - target).norm() < 1e-7);
     }

@@ -2,6 +2,7 @@
 
 pub mod cli;
 pub mod geometry;
+pub mod hand;
 pub mod kinematics;
 pub mod scenes;
 pub mod world;

@@ -1,34 +1,24 @@
 //! Physical checks of the quasi-static world (issue 3, item 7). Run in release.
 
 use dips_host::kinematics::Finger;
-use dips_host::scenes::{SceneKind, screwdriver};
 use dips_host::kinematics::HandModel;
-use dips_host::world::{FrictionModel, ObjectState, StepReport, World, WorldError, WorldParams};
+use dips_host::scenes::{SceneKind, screwdriver};
+use dips_host::world::{
+    FrictionModel, ObjectState, StepReport, World, WorldError, WorldParams, scripted,
+};
 use nalgebra::{Point3, UnitQuaternion, Vector3};
 
-/// Joint deltas (task order) that move each listed fingertip centre by `dp` in a straight line
-/// (iterated IK on a copy of the joints, so the commanded tip target is exact).
 fn tip_action(world: &World, moves: &[(Finger, Vector3<f64>)]) -> Vec<f64> {
-    let hand = world.hand_model();
-    let base = world.hand_base();
-    let q = world.joints();
-    let mut dq = vec![0.0; world.scene().action_dim()];
-    for (k, f) in world.scene().task_fingers().iter().enumerate() {
-        if let Some((_, dp)) = moves.iter().find(|(g, _)| g == f) {
-            let q0 = q[f.index()];
-            let target = hand.tip_center(&base, *f, &q0) + dp;
-            let q1 = hand.solve_tip_ik(&base, *f, &q0, &target, 30);
-            for j in 0..4 {
-                dq[4 * k + j] = q1[j] - q0[j];
-            }
-        }
-    }
-    dq
+    scripted::tip_moves_to_action(world, moves)
 }
 
 fn step(world: &mut World, dq: &[f64]) -> StepReport {
     let r = world.step_action(dq).expect("step solves");
-    assert!(r.max_penetration < 1e-3, "penetration {} m", r.max_penetration);
+    assert!(
+        r.max_penetration < 1e-3,
+        "penetration {} m",
+        r.max_penetration
+    );
     assert!(r.flags.is_empty(), "flags {:?}", r.flags);
     r
 }
@@ -87,8 +77,15 @@ fn tilted_screwdriver_without_fingers_falls() {
     q[Finger::Thumb.index()] = [0.27, -0.1, -0.18, -0.16];
     w.set_joints(&q);
     let r = screwdriver::rotation(0.05, 0.0, 0.0);
-    w.set_object(ObjectState::Screwdriver { orientation: UnitQuaternion::from_rotation_matrix(&r), yaw: 0.0 });
-    assert!(w.tip_distances().iter().all(|d| *d > 0.02), "{:?}", w.tip_distances());
+    w.set_object(ObjectState::Screwdriver {
+        orientation: UnitQuaternion::from_rotation_matrix(&r),
+        yaw: 0.0,
+    });
+    assert!(
+        w.tip_distances().iter().all(|d| *d > 0.02),
+        "{:?}",
+        w.tip_distances()
+    );
     assert!(w.valid());
     let mut fell_at = None;
     for k in 0..12 {
@@ -98,7 +95,11 @@ fn tilted_screwdriver_without_fingers_falls() {
             break;
         }
     }
-    assert!(fell_at.is_some(), "still valid after 12 s, roll {}", w.state()[12]);
+    assert!(
+        fell_at.is_some(),
+        "still valid after 12 s, roll {}",
+        w.state()[12]
+    );
     // It fell the way it leaned.
     assert!(w.state()[12] > 0.1);
 }
@@ -136,7 +137,10 @@ fn card_slides_with_down_force_and_stays_without() {
     // positions at equal height dips 0.2 mm below them for an 8 mm move, as in Isaac's PD.)
     let (dy_free, tip_dy_free) = card_slide(-0.0005, FrictionModel::Staggered);
     eprintln!("staggered free: card dy {dy_free}, tips {tip_dy_free}");
-    assert!(dy_free.abs() < 1e-3, "card moved {dy_free} without down-force (tip {tip_dy_free})");
+    assert!(
+        dy_free.abs() < 1e-3,
+        "card moved {dy_free} without down-force (tip {tip_dy_free})"
+    );
     assert!(tip_dy_free < -0.02, "the fingers did move: {tip_dy_free}");
 }
 
@@ -183,11 +187,17 @@ fn pinch_and_rotate_turns_clockwise() {
 fn solver_failure_surfaces_as_error_and_keeps_state() {
     let mut params = dips_host::world::WorldParams::for_scene(SceneKind::Card);
     params.solver_max_iter = 1;
-    let mut w = World::with_model(SceneKind::Card, dips_host::kinematics::HandModel::allegro_v4(), params);
+    let mut w = World::with_model(
+        SceneKind::Card,
+        dips_host::kinematics::HandModel::allegro_v4(),
+        params,
+    );
     let before = w.state();
     let dq = tip_action(&w, &[(Finger::Index, Vector3::new(0.0, -0.005, -0.01))]);
     match w.step_action(&dq) {
-        Err(WorldError::Solver { status, .. }) => assert!(status.contains("MaxIterations"), "{status}"),
+        Err(WorldError::Solver { status, .. }) => {
+            assert!(status.contains("MaxIterations"), "{status}")
+        }
         other => panic!("expected a solver error, got {other:?}"),
     }
     assert_eq!(w.state(), before);

@@ -9,10 +9,13 @@
 //! `‖δq‖ < early_stop`. See `docs/world.md` for the model and its artifacts.
 
 mod contacts;
+pub mod scripted;
 mod socp;
 
 use clarabel::solver::SolverStatus;
-use nalgebra::{DMatrix, Isometry3, Matrix3, Point3, Rotation3, Translation3, UnitQuaternion, Vector3};
+use nalgebra::{
+    DMatrix, Isometry3, Matrix3, Point3, Rotation3, Translation3, UnitQuaternion, Vector3,
+};
 use serde::{Deserialize, Serialize};
 
 pub use contacts::ContactReport;
@@ -91,7 +94,11 @@ impl WorldParams {
         // more normal force). See docs/world.md.
         let (damping, table, friction_model) = match scene {
             SceneKind::Screwdriver => (screwdriver::DAMPING, 0.0, FrictionModel::Anitescu),
-            SceneKind::Card => ([card::DAMPING; 3], card::TABLE_FRICTION, FrictionModel::Staggered),
+            SceneKind::Card => (
+                [card::DAMPING; 3],
+                card::TABLE_FRICTION,
+                FrictionModel::Staggered,
+            ),
         };
         WorldParams {
             action_duration: 1.0,
@@ -143,7 +150,11 @@ pub enum ObjectState {
 fn wrap_angle(a: f64) -> f64 {
     let two_pi = std::f64::consts::TAU;
     let r = (a + std::f64::consts::PI).rem_euclid(two_pi) - std::f64::consts::PI;
-    if r <= -std::f64::consts::PI { r + two_pi } else { r }
+    if r <= -std::f64::consts::PI {
+        r + two_pi
+    } else {
+        r
+    }
 }
 
 /// Heading of a rotation about world z (yaw of a ZYX decomposition).
@@ -156,10 +167,16 @@ impl ObjectState {
     /// The scene's initial object state.
     pub fn initial(scene: SceneKind) -> ObjectState {
         match scene {
-            SceneKind::Screwdriver => ObjectState::Screwdriver { orientation: UnitQuaternion::identity(), yaw: 0.0 },
+            SceneKind::Screwdriver => ObjectState::Screwdriver {
+                orientation: UnitQuaternion::identity(),
+                yaw: 0.0,
+            },
             SceneKind::Card => {
                 let [x, y, z] = card::INITIAL_CENTER;
-                ObjectState::Card { pose: Isometry3::translation(x, y, z), theta: 0.0 }
+                ObjectState::Card {
+                    pose: Isometry3::translation(x, y, z),
+                    theta: 0.0,
+                }
             }
         }
     }
@@ -170,7 +187,10 @@ impl ObjectState {
         match scene {
             SceneKind::Screwdriver => {
                 let r = screwdriver::rotation(coords[0], coords[1], coords[2]);
-                ObjectState::Screwdriver { orientation: UnitQuaternion::from_rotation_matrix(&r), yaw: coords[2] }
+                ObjectState::Screwdriver {
+                    orientation: UnitQuaternion::from_rotation_matrix(&r),
+                    yaw: coords[2],
+                }
             }
             SceneKind::Card => ObjectState::Card {
                 pose: Isometry3::from_parts(
@@ -211,7 +231,9 @@ impl ObjectState {
             ObjectState::Screwdriver { orientation, .. } => {
                 screwdriver::is_valid(&orientation.to_rotation_matrix())
             }
-            ObjectState::Card { pose, .. } => (pose.translation.z - card::INITIAL_CENTER[2]).abs() <= 5e-3,
+            ObjectState::Card { pose, .. } => {
+                (pose.translation.z - card::INITIAL_CENTER[2]).abs() <= 5e-3
+            }
         }
     }
 
@@ -230,7 +252,8 @@ impl ObjectState {
             ObjectState::Card { pose, theta } => {
                 let before = heading(&pose.rotation);
                 pose.translation.vector += Vector3::new(dq[0], dq[1], dq[2]);
-                let mut rot = UnitQuaternion::from_scaled_axis(Vector3::new(dq[3], dq[4], dq[5])) * pose.rotation;
+                let mut rot = UnitQuaternion::from_scaled_axis(Vector3::new(dq[3], dq[4], dq[5]))
+                    * pose.rotation;
                 rot.renormalize();
                 pose.rotation = rot;
                 *theta += wrap_angle(heading(&rot) - before);
@@ -342,7 +365,11 @@ type ContactKey = (&'static str, &'static str, usize);
 
 fn check_finite(what: &'static str, v: &[f64]) -> Result<(), WorldError> {
     match v.iter().position(|x| !x.is_finite()) {
-        Some(index) => Err(WorldError::NonFinite { what, index, value: v[index] }),
+        Some(index) => Err(WorldError::NonFinite {
+            what,
+            index,
+            value: v[index],
+        }),
         None => Ok(()),
     }
 }
@@ -350,7 +377,11 @@ fn check_finite(what: &'static str, v: &[f64]) -> Result<(), WorldError> {
 impl World {
     /// A scene at its default joints and initial object pose, with default parameters.
     pub fn new(scene: SceneKind) -> World {
-        World::with_model(scene, HandModel::allegro_v4(), WorldParams::for_scene(scene))
+        World::with_model(
+            scene,
+            HandModel::allegro_v4(),
+            WorldParams::for_scene(scene),
+        )
     }
 
     /// A scene with a given hand description and parameters.
@@ -393,7 +424,9 @@ impl World {
                         worst = Some((phi, n));
                     }
                 };
-                let on_obj = self.object_body.sphere_contact(&self.object.pose(), &c, r, 0.0);
+                let on_obj = self
+                    .object_body
+                    .sphere_contact(&self.object.pose(), &c, r, 0.0);
                 if let Some(k) = on_obj {
                     consider(k.phi, k.normal);
                 }
@@ -406,7 +439,9 @@ impl World {
                 if phi > -1e-7 {
                     break;
                 }
-                let dq = self.hand.tip_ik_step(&self.base, *f, &q, &(n * (-phi + 1e-6)), 1e-3);
+                let dq = self
+                    .hand
+                    .tip_ik_step(&self.base, *f, &q, &(n * (-phi + 1e-6)), 1e-3);
                 let next: [f64; 4] = std::array::from_fn(|j| q[j] + dq[j]);
                 self.joints[f.index()] = self.hand.clamp_to_limits(*f, &next);
             }
@@ -440,7 +475,11 @@ impl World {
 
     /// The task fingers' joints in `CONTRACTS.md` §2 order (12 or 8).
     pub fn task_joints(&self) -> Vec<f64> {
-        self.scene.task_fingers().iter().flat_map(|f| self.joints[f.index()]).collect()
+        self.scene
+            .task_fingers()
+            .iter()
+            .flat_map(|f| self.joints[f.index()])
+            .collect()
     }
 
     /// The object's configuration.
@@ -465,11 +504,20 @@ impl World {
     pub fn set_state(&mut self, state: &[f64]) -> Result<(), WorldError> {
         let n = self.scene.state_dim();
         if state.len() != n {
-            return Err(WorldError::StateLength { scene: self.scene.name(), expected: n, got: state.len() });
+            return Err(WorldError::StateLength {
+                scene: self.scene.name(),
+                expected: n,
+                got: state.len(),
+            });
         }
         check_finite("state", state)?;
         for (k, f) in self.scene.task_fingers().iter().enumerate() {
-            let q = [state[4 * k], state[4 * k + 1], state[4 * k + 2], state[4 * k + 3]];
+            let q = [
+                state[4 * k],
+                state[4 * k + 1],
+                state[4 * k + 2],
+                state[4 * k + 3],
+            ];
             self.joints[f.index()] = self.hand.clamp_to_limits(*f, &q);
         }
         let a = self.scene.action_dim();
@@ -514,8 +562,11 @@ impl World {
             .task_fingers()
             .iter()
             .map(|f| {
-                let c = self.hand.tip_center(&self.base, *f, &self.joints[f.index()]);
-                self.object_body.sphere_distance(&pose, &c, self.hand.tip_radius)
+                let c = self
+                    .hand
+                    .tip_center(&self.base, *f, &self.joints[f.index()]);
+                self.object_body
+                    .sphere_distance(&pose, &c, self.hand.tip_radius)
             })
             .collect()
     }
@@ -526,7 +577,9 @@ impl World {
         let r = self.hand.tip_radius;
         let mut worst: f64 = 0.0;
         for f in self.scene.task_fingers() {
-            let c = self.hand.tip_center(&self.base, *f, &self.joints[f.index()]);
+            let c = self
+                .hand
+                .tip_center(&self.base, *f, &self.joints[f.index()]);
             worst = worst.max(-self.object_body.sphere_distance(&pose, &c, r));
             if let Some(t) = &self.table {
                 worst = worst.max(-t.sphere_distance(&Isometry3::identity(), &c, r));
@@ -545,7 +598,11 @@ impl World {
     pub fn step_action(&mut self, dq: &[f64]) -> Result<StepReport, WorldError> {
         let n = self.scene.action_dim();
         if dq.len() != n {
-            return Err(WorldError::ActionLength { scene: self.scene.name(), expected: n, got: dq.len() });
+            return Err(WorldError::ActionLength {
+                scene: self.scene.name(),
+                expected: n,
+                got: dq.len(),
+            });
         }
         check_finite("action", dq)?;
         let mut targets = self.joints;
@@ -562,7 +619,10 @@ impl World {
     pub fn step_targets(&mut self, targets: &HandJoints) -> Result<StepReport, WorldError> {
         check_finite("target", targets.as_flattened())?;
         let fingers = self.scene.task_fingers();
-        let q_cmd: Vec<f64> = fingers.iter().flat_map(|f| self.hand.clamp_to_limits(*f, &targets[f.index()])).collect();
+        let q_cmd: Vec<f64> = fingers
+            .iter()
+            .flat_map(|f| self.hand.clamp_to_limits(*f, &targets[f.index()]))
+            .collect();
         let mut report = StepReport {
             substeps_run: 0,
             contacts: Vec::new(),
@@ -571,12 +631,30 @@ impl World {
             solves: 0,
             flags: Vec::new(),
         };
-        let saved = (self.joints, self.object.clone(), self.last_contacts.clone(), self.normal_memory.clone());
+        let saved = (
+            self.joints,
+            self.object.clone(),
+            self.last_contacts.clone(),
+            self.normal_memory.clone(),
+        );
         for substep in 0..self.params.substeps.max(1) {
-            let SubstepResult { dx, contacts, iters, solves, status, unconverged, memory } = match self.solve_substep(&q_cmd, substep) {
+            let SubstepResult {
+                dx,
+                contacts,
+                iters,
+                solves,
+                status,
+                unconverged,
+                memory,
+            } = match self.solve_substep(&q_cmd, substep) {
                 Ok(v) => v,
                 Err(e) => {
-                    (self.joints, self.object, self.last_contacts, self.normal_memory) = saved;
+                    (
+                        self.joints,
+                        self.object,
+                        self.last_contacts,
+                        self.normal_memory,
+                    ) = saved;
                     return Err(e);
                 }
             };
@@ -587,7 +665,9 @@ impl World {
                 report.flags.push(StepFlag::ReducedAccuracy { substep });
             }
             if let Some(change) = unconverged {
-                report.flags.push(StepFlag::FrictionNotConverged { substep, change });
+                report
+                    .flags
+                    .push(StepFlag::FrictionNotConverged { substep, change });
             }
             self.apply_increment(&dx);
             self.last_contacts = contacts;
@@ -617,7 +697,10 @@ impl World {
             ObjectState::Screwdriver { orientation, .. } => {
                 let r = orientation.to_rotation_matrix();
                 let i_body = Matrix3::from_diagonal(&Vector3::from(screwdriver::INERTIA_PIVOT));
-                let max_i = screwdriver::INERTIA_PIVOT.iter().copied().fold(0.0, f64::max);
+                let max_i = screwdriver::INERTIA_PIVOT
+                    .iter()
+                    .copied()
+                    .fold(0.0, f64::max);
                 let eps = regulariser(p.kp, p.mass_scale, max_i);
                 let m_world = r.matrix() * i_body * r.matrix().transpose() * eps;
                 // Joint-space damping D on (roll, pitch, yaw) mapped to ω: ω = E θ̇, so the
@@ -636,14 +719,19 @@ impl World {
                 let block = m_world + damp + Matrix3::identity() * 1e-9;
                 let com = r * Vector3::new(0.0, 0.0, screwdriver::COM_HEIGHT);
                 let torque = com.cross(&Vector3::new(0.0, 0.0, -screwdriver::MASS * g));
-                (DMatrix::from_iterator(3, 3, block.iter().copied()), torque.iter().copied().collect())
+                (
+                    DMatrix::from_iterator(3, 3, block.iter().copied()),
+                    torque.iter().copied().collect(),
+                )
             }
             ObjectState::Card { pose, .. } => {
                 let inertia = card::inertia();
                 let max_m = card::MASS.max(inertia.iter().copied().fold(0.0, f64::max));
                 let eps = regulariser(p.kp, p.mass_scale, max_m);
                 let rot = pose.rotation.to_rotation_matrix();
-                let i_world = rot.matrix() * Matrix3::from_diagonal(&Vector3::from(inertia)) * rot.matrix().transpose();
+                let i_world = rot.matrix()
+                    * Matrix3::from_diagonal(&Vector3::from(inertia))
+                    * rot.matrix().transpose();
                 let mut block = DMatrix::zeros(6, 6);
                 for i in 0..3 {
                     block[(i, i)] = eps * card::MASS + p.damping[0] / h + 1e-9;
@@ -670,13 +758,19 @@ impl World {
         }
         let mut object = self.object.clone();
         object.apply(&guess[4 * fingers.len()..]);
-        let frames: Vec<FingerFrames> =
-            fingers.iter().map(|f| self.hand.finger_frames(&self.base, *f, &joints[f.index()])).collect();
+        let frames: Vec<FingerFrames> = fingers
+            .iter()
+            .map(|f| self.hand.finger_frames(&self.base, *f, &joints[f.index()]))
+            .collect();
         let names: Vec<&'static str> = fingers.iter().map(|f| f.name()).collect();
         let pose = object.pose();
         let dofs = match object {
-            ObjectState::Screwdriver { .. } => contacts::ObjectDofs::Pivot { pivot: screwdriver::pivot() },
-            ObjectState::Card { pose, .. } => contacts::ObjectDofs::Free { origin: Point3::from(pose.translation.vector) },
+            ObjectState::Screwdriver { .. } => contacts::ObjectDofs::Pivot {
+                pivot: screwdriver::pivot(),
+            },
+            ObjectState::Card { pose, .. } => contacts::ObjectDofs::Free {
+                origin: Point3::from(pose.translation.vector),
+            },
         };
         let mut cands = contacts::candidates(&contacts::ContactInputs {
             scene: self.scene,
@@ -739,10 +833,23 @@ impl World {
         let check = |sol: &socp::Solution| -> Result<(), WorldError> {
             match sol.status {
                 SolverStatus::Solved | SolverStatus::AlmostSolved => {}
-                other => return Err(WorldError::Solver { substep, status: format!("{other:?}") }),
+                other => {
+                    return Err(WorldError::Solver {
+                        substep,
+                        status: format!("{other:?}"),
+                    });
+                }
             }
-            if sol.x.iter().chain(sol.normal_forces.iter()).any(|v| !v.is_finite()) {
-                return Err(WorldError::Solver { substep, status: "non-finite solution".into() });
+            if sol
+                .x
+                .iter()
+                .chain(sol.normal_forces.iter())
+                .any(|v| !v.is_finite())
+            {
+                return Err(WorldError::Solver {
+                    substep,
+                    status: "non-finite solution".into(),
+                });
             }
             Ok(())
         };
@@ -786,7 +893,12 @@ impl World {
                     let keys: Vec<ContactKey> = cands.iter().map(|c| c.key).collect();
                     let normals: Vec<f64> = keys
                         .iter()
-                        .map(|key| known.iter().find(|(k, _)| k == key).map_or(0.0, |(_, f)| *f))
+                        .map(|key| {
+                            known
+                                .iter()
+                                .find(|(k, _)| k == key)
+                                .map_or(0.0, |(_, f)| *f)
+                        })
                         .collect();
                     let rows: Vec<socp::ConeRow> = cands.iter().map(|c| c.row.clone()).collect();
                     let prog = socp::Program {
@@ -804,12 +916,23 @@ impl World {
                     if sol.status == SolverStatus::AlmostSolved {
                         worst_status = SolverStatus::AlmostSolved;
                     }
-                    let residual: Vec<f64> =
-                        sol.normal_forces.iter().zip(&normals).map(|(g, n)| g.max(0.0) - n).collect();
+                    let residual: Vec<f64> = sol
+                        .normal_forces
+                        .iter()
+                        .zip(&normals)
+                        .map(|(g, n)| g.max(0.0) - n)
+                        .collect();
                     let change = residual.iter().fold(0.0, |m: f64, r| m.max(r.abs()));
                     let largest = sol.normal_forces.iter().copied().fold(0.0, f64::max);
-                    let tol = self.params.staggered_tolerance + self.params.staggered_relative_tolerance * largest;
-                    let step: f64 = sol.x.iter().zip(&guess).map(|(a, b)| (a - b).powi(2)).sum::<f64>().sqrt();
+                    let tol = self.params.staggered_tolerance
+                        + self.params.staggered_relative_tolerance * largest;
+                    let step: f64 = sol
+                        .x
+                        .iter()
+                        .zip(&guess)
+                        .map(|(a, b)| (a - b).powi(2))
+                        .sum::<f64>()
+                        .sqrt();
                     let size: f64 = sol.x.iter().map(|a| a * a).sum::<f64>().sqrt();
                     let moved = step > 1e-6 + 1e-2 * size;
                     unconverged = (change > tol || moved).then_some(change);
@@ -821,7 +944,8 @@ impl World {
                     }
                     match &prev {
                         Some((prev_keys, prev_res)) if *prev_keys == keys => {
-                            let dr: Vec<f64> = residual.iter().zip(prev_res).map(|(a, b)| a - b).collect();
+                            let dr: Vec<f64> =
+                                residual.iter().zip(prev_res).map(|(a, b)| a - b).collect();
                             let denom: f64 = dr.iter().map(|d| d * d).sum();
                             if denom > 0.0 {
                                 let num: f64 = prev_res.iter().zip(&dr).map(|(a, b)| a * b).sum();
@@ -840,7 +964,11 @@ impl World {
                 last.ok_or_else(|| WorldError::Setup("no staggered iteration ran".into()))?
             }
         };
-        let memory = cands.iter().zip(&sol.normal_forces).map(|(cand, f)| (cand.key, f.max(0.0))).collect();
+        let memory = cands
+            .iter()
+            .zip(&sol.normal_forces)
+            .map(|(cand, f)| (cand.key, f.max(0.0)))
+            .collect();
         let reports = cands
             .iter()
             .zip(&sol.forces_on_a)
@@ -857,7 +985,15 @@ impl World {
                 }
             })
             .collect();
-        Ok(SubstepResult { dx: sol.x, contacts: reports, iters, solves, status: worst_status, unconverged, memory })
+        Ok(SubstepResult {
+            dx: sol.x,
+            contacts: reports,
+            iters,
+            solves,
+            status: worst_status,
+            unconverged,
+            memory,
+        })
     }
 
     fn apply_increment(&mut self, dx: &[f64]) {
@@ -885,7 +1021,11 @@ struct SubstepResult {
 /// qsim's mass scaling: `ε` such that the largest mass entry becomes `kp / s` (spec §1.1).
 /// A non-positive or non-finite `s` means "use the true mass" (ε = 1).
 fn regulariser(kp: f64, s: f64, max_mass: f64) -> f64 {
-    if s.is_finite() && s > 0.0 && max_mass > 0.0 { kp / (s * max_mass) } else { 1.0 }
+    if s.is_finite() && s > 0.0 && max_mass > 0.0 {
+        kp / (s * max_mass)
+    } else {
+        1.0
+    }
 }
 
 #[cfg(test)]
@@ -915,8 +1055,17 @@ mod tests {
         for (a, b) in s.iter().zip(&back) {
             assert!((a - b).abs() < 1e-12);
         }
-        assert!(matches!(w.set_state(&s[..5]), Err(WorldError::StateLength { .. })));
-        assert!(matches!(w.step_action(&[0.0; 3]), Err(WorldError::ActionLength { .. })));
-        assert!(matches!(w.step_action(&[f64::NAN; 8]), Err(WorldError::NonFinite { .. })));
+        assert!(matches!(
+            w.set_state(&s[..5]),
+            Err(WorldError::StateLength { .. })
+        ));
+        assert!(matches!(
+            w.step_action(&[0.0; 3]),
+            Err(WorldError::ActionLength { .. })
+        ));
+        assert!(matches!(
+            w.step_action(&[f64::NAN; 8]),
+            Err(WorldError::NonFinite { .. })
+        ));
     }
 }

@@ -8,7 +8,9 @@
 //! with `x = [δq_a ; δq_u]`. The duals of the cones are the contact forces.
 
 use clarabel::algebra::CscMatrix;
-use clarabel::solver::{DefaultSettingsBuilder, DefaultSolver, IPSolver, SolverStatus, SupportedConeT};
+use clarabel::solver::{
+    DefaultSettingsBuilder, DefaultSolver, IPSolver, SolverStatus, SupportedConeT,
+};
 use nalgebra::{DMatrix, Matrix3xX, Vector3};
 
 /// One contact row block: relative-velocity Jacobian and contact frame.
@@ -69,7 +71,11 @@ pub(crate) struct Solution {
 
 /// An orthonormal tangent pair for a unit normal (deterministic).
 pub(crate) fn tangents(n: &Vector3<f64>) -> (Vector3<f64>, Vector3<f64>) {
-    let a = if n.x.abs() < 0.9 { Vector3::x() } else { Vector3::y() };
+    let a = if n.x.abs() < 0.9 {
+        Vector3::x()
+    } else {
+        Vector3::y()
+    };
     let t1 = n.cross(&a).normalize();
     let t2 = n.cross(&t1);
     (t1, t2)
@@ -104,7 +110,8 @@ const MIN_FRICTION_BOUND: f64 = 1e-9;
 pub(crate) fn solve(prog: &Program<'_>) -> Result<Solution, String> {
     let n = prog.c.len();
     let k = prog.cones.len();
-    let frames: Vec<(Vector3<f64>, Vector3<f64>)> = prog.cones.iter().map(|c| tangents(&c.normal)).collect();
+    let frames: Vec<(Vector3<f64>, Vector3<f64>)> =
+        prog.cones.iter().map(|c| tangents(&c.normal)).collect();
     // Friction epigraph variables (lagged form): one per contact with a positive bound.
     let lagged_slot: Vec<Option<usize>> = match prog.friction {
         FrictionForm::Anitescu => vec![None; k],
@@ -209,8 +216,8 @@ pub(crate) fn solve(prog: &Program<'_>) -> Result<Solution, String> {
         .max_iter(prog.max_iter)
         .build()
         .map_err(|e| format!("settings: {e:?}"))?;
-    let mut solver =
-        DefaultSolver::new(&p, &c_full, &a, &b, &cone_spec, settings).map_err(|e| format!("setup: {e:?}"))?;
+    let mut solver = DefaultSolver::new(&p, &c_full, &a, &b, &cone_spec, settings)
+        .map_err(|e| format!("setup: {e:?}"))?;
     solver.solve();
     let sol = &solver.solution;
     let mut forces_on_a = Vec::with_capacity(k);
@@ -258,8 +265,21 @@ mod tests {
         let c = [-k * 0.004, 0.0, k * 0.01];
         let mut jac = Matrix3xX::zeros(3);
         jac.fill_with_identity();
-        let cone = ConeRow { phi: 0.0, mu: 0.5, normal: Vector3::z(), jac };
-        let sol = solve(&Program { p: &p, c: &c, cones: &[cone], bounds: &[], max_iter: 100, friction: FrictionForm::Anitescu }).unwrap();
+        let cone = ConeRow {
+            phi: 0.0,
+            mu: 0.5,
+            normal: Vector3::z(),
+            jac,
+        };
+        let sol = solve(&Program {
+            p: &p,
+            c: &c,
+            cones: &[cone],
+            bounds: &[],
+            max_iter: 100,
+            friction: FrictionForm::Anitescu,
+        })
+        .unwrap();
         assert_eq!(sol.status, SolverStatus::Solved);
         // Normal force k·0.01 = 1 N on the point (+z); the tangential pull k·0.004 = 0.4 N is
         // inside the friction limit 0.5 N, so the point sticks and friction carries all of it.
@@ -271,8 +291,21 @@ mod tests {
         let c = [-k * 0.01, 0.0, k * 0.01];
         let mut jac = Matrix3xX::zeros(3);
         jac.fill_with_identity();
-        let cone = ConeRow { phi: 0.0, mu: 0.5, normal: Vector3::z(), jac };
-        let sol = solve(&Program { p: &p, c: &c, cones: &[cone], bounds: &[], max_iter: 100, friction: FrictionForm::Anitescu }).unwrap();
+        let cone = ConeRow {
+            phi: 0.0,
+            mu: 0.5,
+            normal: Vector3::z(),
+            jac,
+        };
+        let sol = solve(&Program {
+            p: &p,
+            c: &c,
+            cones: &[cone],
+            bounds: &[],
+            max_iter: 100,
+            friction: FrictionForm::Anitescu,
+        })
+        .unwrap();
         assert!(sol.x[0] > 1e-3, "{:?}", sol.x);
         assert!((sol.x[2] - 0.5 * sol.x[0]).abs() < 1e-6, "{:?}", sol.x);
         let f = sol.forces_on_a[0];
@@ -287,7 +320,12 @@ mod tests {
         let c = [-k * 0.01, 0.0, k * 0.01];
         let mut jac = Matrix3xX::zeros(3);
         jac.fill_with_identity();
-        let cone = ConeRow { phi: 0.0, mu: 0.5, normal: Vector3::z(), jac };
+        let cone = ConeRow {
+            phi: 0.0,
+            mu: 0.5,
+            normal: Vector3::z(),
+            jac,
+        };
         let normals = [1.0];
         let prog = Program {
             p: &p,
@@ -300,12 +338,22 @@ mod tests {
         let sol = solve(&prog).unwrap();
         assert_eq!(sol.status, SolverStatus::Solved);
         // Spring pulls 1 N tangentially, friction holds 0.5 N: slides by 0.5 N / k, no lift.
-        assert!((sol.x[0] - 0.005).abs() < 1e-6 && sol.x[2].abs() < 1e-7, "{:?}", sol.x);
+        assert!(
+            (sol.x[0] - 0.005).abs() < 1e-6 && sol.x[2].abs() < 1e-7,
+            "{:?}",
+            sol.x
+        );
         let f = sol.forces_on_a[0];
-        assert!((f.x + 0.5).abs() < 1e-5 && (f.z - 1.0).abs() < 1e-5, "{f:?}");
+        assert!(
+            (f.x + 0.5).abs() < 1e-5 && (f.z - 1.0).abs() < 1e-5,
+            "{f:?}"
+        );
         // With N̂ = 0 there is no friction at all.
         let zero = [0.0];
-        let prog = Program { friction: FrictionForm::Lagged(&zero), ..prog };
+        let prog = Program {
+            friction: FrictionForm::Lagged(&zero),
+            ..prog
+        };
         let sol = solve(&prog).unwrap();
         assert!((sol.x[0] - 0.01).abs() < 1e-6, "{:?}", sol.x);
     }
@@ -314,8 +362,20 @@ mod tests {
     fn bounds_are_respected() {
         let p = DMatrix::identity(2, 2);
         let c = [-1.0, 1.0];
-        let sol = solve(&Program { p: &p, c: &c, cones: &[], bounds: &[(-0.5, 0.5), (-0.2, 0.2)], max_iter: 100, friction: FrictionForm::Anitescu }).unwrap();
+        let sol = solve(&Program {
+            p: &p,
+            c: &c,
+            cones: &[],
+            bounds: &[(-0.5, 0.5), (-0.2, 0.2)],
+            max_iter: 100,
+            friction: FrictionForm::Anitescu,
+        })
+        .unwrap();
         assert_eq!(sol.status, SolverStatus::Solved);
-        assert!((sol.x[0] - 0.5).abs() < 1e-6 && (sol.x[1] + 0.2).abs() < 1e-6, "{:?}", sol.x);
+        assert!(
+            (sol.x[0] - 0.5).abs() < 1e-6 && (sol.x[1] + 0.2).abs() < 1e-6,
+            "{:?}",
+            sol.x
+        );
     }
 }
