@@ -1,5 +1,9 @@
 //! The `dips` command line (`CONTRACTS.md` §5). Each command group lives in its own module.
 
+pub mod bench;
+pub mod bench_sim;
+pub mod sim;
+
 use clap::{Parser, Subcommand};
 
 /// DIPS: diffusion-informed probabilistic contact search for multi-finger manipulation.
@@ -13,10 +17,18 @@ pub struct Cli {
 
 /// Top-level commands.
 #[derive(Debug, Subcommand)]
-pub enum Command {}
+pub enum Command {
+    /// Quasi-static test world: run actions, draw scenes and trajectories.
+    Sim(sim::SimArgs),
+    /// Benchmarks that print JSON figures.
+    Bench(bench::BenchArgs),
+}
 
 /// Parse the process arguments and run the command.
 pub fn main() -> anyhow::Result<()> {
     let cli = Cli::parse();
-    match cli.command {}
+    match cli.command {
+        Command::Sim(args) => sim::main(args),
+        Command::Bench(args) => bench::main(args),
+    }
 }

@@ -8,6 +8,7 @@
 //! Anitescu friction cone. The cone duals are the contact forces. Sub-steps stop early once
 //! `‖δq‖ < early_stop`. See `docs/world.md` for the model and its artifacts.
 
+pub mod bench;
 mod contacts;
 pub mod scripted;
 mod socp;
