@@ -3,7 +3,7 @@
 //! `dips sim run --scene screwdriver|card --commands CMDS.json --out OUT.json` executes one
 //! 1 s action per row of CMDS (`{"dq": [[...], ...]}`: joint deltas of the task fingers in
 //! `CONTRACTS.md` §2 order, relative to the current measured joints) and writes
-//! `{"scene", "states", "valid", "contacts", "max_penetration", "flags"}` with one state row per
+//! `{"scene", "states", "valid", "contacts", "max_penetration", "flags", "metric"}` with one state row per
 //! action plus the initial state first. `contacts[k]` are the contacts at the end of action k
 //! (`contacts[0]` is empty): finger, part, point, normal (out of the part), force (exerted by
 //! the finger on the part, N) and signed distance.
@@ -172,9 +172,25 @@ pub struct Trajectory {
     pub max_penetration: Vec<f64>,
     /// Flags of each action (empty for the initial state).
     pub flags: Vec<Vec<StepFlag>>,
+    /// Task metric of each state row: screwdriver yaw (rad, clockwise negative, unwrapped) or
+    /// the card's planar distance to its goal (m; goal = start − 6 cm in y).
+    #[serde(default)]
+    pub metric: Vec<f64>,
     /// Error that stopped the run early, if any.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub error: Option<String>,
+}
+
+/// The task metric of a state row (see [`Trajectory::metric`]); `start` is the first row.
+pub fn task_metric(scene: SceneKind, start: &[f64], state: &[f64]) -> f64 {
+    let a = scene.action_dim();
+    match scene {
+        SceneKind::Screwdriver => state[a + 2],
+        SceneKind::Card => {
+            let goal = crate::scenes::card::goal_from_start(start[a], start[a + 1]);
+            crate::scenes::card::distance_to_goal(state[a], state[a + 1], goal)
+        }
+    }
 }
 
 fn parse_scene(name: &str) -> Result<SceneKind, SimCliError> {
@@ -224,6 +240,7 @@ pub fn run_commands(
         contacts: vec![Vec::new()],
         max_penetration: vec![world.max_penetration()],
         flags: vec![Vec::new()],
+        metric: Vec::new(),
         error: None,
     };
     for (k, row) in dq.iter().enumerate() {
@@ -278,6 +295,7 @@ fn run(args: &RunArgs) -> Result<(), SimCliError> {
                 contacts: vec![Vec::new()],
                 max_penetration: vec![rec.inner().max_penetration()],
                 flags: vec![Vec::new()],
+                metric: Vec::new(),
                 error: None,
             };
             let mut failure = None;
@@ -308,6 +326,12 @@ fn run(args: &RunArgs) -> Result<(), SimCliError> {
             (traj, failure)
         }
     };
+    let mut traj = traj;
+    traj.metric = traj
+        .states
+        .iter()
+        .map(|s| task_metric(scene, &traj.states[0], s))
+        .collect();
     write_json(&args.out, &traj)?;
     if let Some((action, source)) = failure {
         return Err(SimCliError::Action { action, source });
@@ -315,7 +339,13 @@ fn run(args: &RunArgs) -> Result<(), SimCliError> {
     let last = traj.states.last().cloned().unwrap_or_default();
     println!(
         "{}",
-        serde_json::json!({"scene": scene.name(), "actions": dq.len(), "final_state": last, "valid": traj.valid.last()})
+        serde_json::json!({
+            "scene": scene.name(),
+            "actions": dq.len(),
+            "final_state": last,
+            "valid": traj.valid.last(),
+            "metric": traj.metric.last(),
+        })
     );
     Ok(())
 }

@@ -101,7 +101,7 @@ const CONTACT: Rgb = [210, 20, 20];
 const FORCE: Rgb = [20, 150, 40];
 
 /// Metres of arrow per newton of contact force.
-pub const FORCE_SCALE: f64 = 0.01;
+pub const FORCE_SCALE: f64 = 0.005;
 
 /// Draw a world state with the given contacts (e.g. from a trajectory file).
 pub fn draw(world: &World, contacts: &[ContactReport], heading: &str) -> Drawing {

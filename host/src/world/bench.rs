@@ -28,6 +28,10 @@ pub struct ScenarioTiming {
     pub mean_solves: f64,
     /// Mean interior-point iterations per action.
     pub mean_iterations: f64,
+    /// Deepest penetration after any timed action (mm).
+    pub max_penetration_mm: f64,
+    /// Actions that carried a flag (reduced accuracy, unconverged friction, tilt limit).
+    pub flagged_actions: usize,
 }
 
 /// The whole benchmark.
@@ -54,6 +58,7 @@ fn time_scenario(
     let mut world = World::new(scene);
     let mut times = Vec::with_capacity(actions);
     let (mut subs, mut solves, mut iters) = (0usize, 0u64, 0u64);
+    let (mut pen, mut flagged): (f64, usize) = (0.0, 0);
     for k in 0..actions {
         // Restart periodically so the manipulation stays in the scene's working range.
         if manipulate && k % 6 == 0 {
@@ -70,6 +75,8 @@ fn time_scenario(
         subs += rep.substeps_run;
         solves += u64::from(rep.solves);
         iters += u64::from(rep.iterations);
+        pen = pen.max(rep.max_penetration);
+        flagged += usize::from(!rep.flags.is_empty());
     }
     let n = times.len().max(1) as f64;
     let mean = times.iter().sum::<f64>() / n;
@@ -84,6 +91,8 @@ fn time_scenario(
         mean_substeps: subs as f64 / n,
         mean_solves: solves as f64 / n,
         mean_iterations: iters as f64 / n,
+        max_penetration_mm: pen * 1e3,
+        flagged_actions: flagged,
     })
 }
 

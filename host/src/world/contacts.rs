@@ -90,6 +90,8 @@ pub(crate) struct ContactInputs<'a> {
     pub dofs: ObjectDofs,
     pub table: Option<&'a Body>,
     pub margin: f64,
+    /// Margin for fingertip–table pairs (smaller: the card usually lies in between).
+    pub table_margin: f64,
     pub finger_friction: f64,
     pub finger_table_friction: f64,
     pub table_friction: f64,
@@ -126,7 +128,8 @@ pub(crate) fn candidates(inp: &ContactInputs<'_>) -> Vec<Candidate> {
             });
         }
         if let Some(table) = inp.table
-            && let Some(c) = table.sphere_contact(&Isometry3::identity(), &center, r, inp.margin)
+            && let Some(c) =
+                table.sphere_contact(&Isometry3::identity(), &center, r, inp.table_margin)
         {
             let mut jac = Matrix3xX::zeros(n);
             let jf = jacobian_from_frames(frames, &c.point_on_sphere);

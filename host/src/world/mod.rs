@@ -783,6 +783,7 @@ impl World {
             dofs,
             table: self.table.as_ref(),
             margin: self.params.contact_margin,
+            table_margin: 0.25 * self.params.contact_margin,
             finger_friction: self.params.finger_friction,
             finger_table_friction: self.params.finger_table_friction,
             table_friction: self.params.table_friction,
