@@ -36,14 +36,19 @@ fn run_writes_trajectory_in_contract_shape() {
         let cmds = serde_json::json!({ "dq": [row.clone(), row, vec![0.0; n]] }).to_string();
         let (o, out) = run_sim(scene, &cmds, &dir);
         assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-        let v: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&out).unwrap()).unwrap();
+        let v: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(&out).unwrap()).unwrap();
         let states = v["states"].as_array().unwrap();
         assert_eq!(states.len(), 4);
         assert!(states.iter().all(|s| s.as_array().unwrap().len() == state));
         assert_eq!(v["valid"].as_array().unwrap().len(), 4);
         let contacts = v["contacts"].as_array().unwrap();
         assert_eq!(contacts.len(), 4);
-        let any = contacts.iter().flat_map(|c| c.as_array().unwrap()).next().expect("some contact");
+        let any = contacts
+            .iter()
+            .flat_map(|c| c.as_array().unwrap())
+            .next()
+            .expect("some contact");
         for key in ["finger", "part", "point", "normal", "force"] {
             assert!(any.get(key).is_some(), "{key} missing in {any}");
         }
@@ -74,9 +79,17 @@ fn run_writes_trajectory_in_contract_shape() {
 fn bad_commands_get_clear_errors() {
     let dir = tmpdir("bad");
     let cases = [
-        ("screwdriver", r#"{"dq": [[0,0,0]]}"#, "dq row 0 has 3 numbers, the screwdriver task needs 12"),
+        (
+            "screwdriver",
+            r#"{"dq": [[0,0,0]]}"#,
+            "dq row 0 has 3 numbers, the screwdriver task needs 12",
+        ),
         ("card", r#"{"dq": [[0,0,0,0,0,0,0,NaN]]}"#, "not valid JSON"),
-        ("card", r#"{"dq": [[0,0,0,0,0,0,0,1e999]]}"#, "not valid JSON"),
+        (
+            "card",
+            r#"{"dq": [[0,0,0,0,0,0,0,1e999]]}"#,
+            "not valid JSON",
+        ),
         ("card", "this is not json", "not valid JSON"),
         ("card", r#"{"actions": []}"#, "not valid JSON"),
         ("plate", r#"{"dq": []}"#, "unknown scene"),
@@ -92,10 +105,50 @@ fn bad_commands_get_clear_errors() {
 
 #[test]
 fn bench_sim_prints_json_figures() {
-    let o = dips().args(["bench", "sim", "--json", "--actions", "2"]).output().unwrap();
+    let o = dips()
+        .args(["bench", "sim", "--json", "--actions", "2"])
+        .output()
+        .unwrap();
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
     let sc = v["scenarios"].as_array().unwrap();
     assert_eq!(sc.len(), 4);
     assert!(sc.iter().all(|s| s["mean_ms"].as_f64().unwrap() > 0.0));
+}
+
+#[test]
+fn run_with_log_is_replayable() {
+    let dir = tmpdir("log");
+    let c = dir.join("cmds.json");
+    let mut row = vec![0.0; 8];
+    row[1] = 0.08;
+    row[5] = 0.08;
+    std::fs::write(
+        &c,
+        serde_json::json!({ "dq": [row.clone(), row] }).to_string(),
+    )
+    .unwrap();
+    let out = dir.join("out.json");
+    let log = dir.join("log.jsonl");
+    let o = dips()
+        .args(["sim", "run", "--scene", "card", "--commands"])
+        .arg(&c)
+        .arg("--out")
+        .arg(&out)
+        .arg("--log")
+        .arg(&log)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let rep = dips_host::hand::replay(&log).unwrap();
+    let v: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&out).unwrap()).unwrap();
+    let states: Vec<Vec<f64>> = serde_json::from_value(v["states"].clone()).unwrap();
+    assert_eq!(rep.states.len(), states.len());
+    for (a, b) in rep.states.iter().zip(&states) {
+        for (x, y) in a.iter().zip(b) {
+            assert!((x - y).abs() < 1e-9);
+        }
+    }
+    std::fs::remove_dir_all(&dir).ok();
 }
