@@ -34,6 +34,8 @@ pub(crate) struct Candidate {
     pub part: &'static str,
     /// Stable identity across sub-steps: (pushing body, touched body, index within the pair).
     pub key: (&'static str, &'static str, usize),
+    /// Signed distance at the configuration the candidate was computed at (before any shift).
+    pub phi_at_trial: f64,
     pub point: Point3<f64>,
     pub row: ConeRow,
 }
@@ -118,6 +120,7 @@ pub(crate) fn candidates(inp: &ContactInputs<'_>) -> Vec<Candidate> {
                 finger: inp.finger_names[k],
                 part: c.part,
                 key: (inp.finger_names[k], inp.object.name, 0),
+                phi_at_trial: c.phi,
                 point: c.point_on_body,
                 row: ConeRow {
                     phi: c.phi,
@@ -138,6 +141,7 @@ pub(crate) fn candidates(inp: &ContactInputs<'_>) -> Vec<Candidate> {
                 finger: inp.finger_names[k],
                 part: c.part,
                 key: (inp.finger_names[k], table.name, 0),
+                phi_at_trial: c.phi,
                 point: c.point_on_body,
                 row: ConeRow {
                     phi: c.phi,
@@ -161,6 +165,7 @@ pub(crate) fn candidates(inp: &ContactInputs<'_>) -> Vec<Candidate> {
                 finger: "card",
                 part: "table",
                 key: ("card", "table", index),
+                phi_at_trial: phi,
                 point: Point3::new(p.x, p.y, card::TABLE_TOP),
                 row: ConeRow {
                     phi,

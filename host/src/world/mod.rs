@@ -68,6 +68,9 @@ pub struct WorldParams {
     pub staggered_tolerance: f64,
     /// Relative part of the staggered stopping rule.
     pub staggered_relative_tolerance: f64,
+    /// Staggered iterations also require the linearised signed distances to match the true
+    /// ones at the solution to within this (m).
+    pub geometry_tolerance: f64,
 }
 
 /// Friction formulation of the contact step.
@@ -120,6 +123,7 @@ impl WorldParams {
             staggered_iterations: 12,
             staggered_tolerance: 1e-3,
             staggered_relative_tolerance: 0.02,
+            geometry_tolerance: 2e-5,
         }
     }
 
@@ -274,11 +278,12 @@ pub enum StepFlag {
     },
     /// The screwdriver's roll or pitch passed its ±1.57 joint limit (not modelled as a stop).
     TiltLimit,
-    /// Staggered friction iterations hit their limit before the normal forces settled.
+    /// Staggered friction iterations hit their limit before the normal forces (and the
+    /// re-linearised geometry) settled.
     FrictionNotConverged {
         /// Sub-step index within the action.
         substep: usize,
-        /// Largest normal-force change in the last iteration (N).
+        /// Largest remaining normal-force change (N) or signed-distance mismatch (m).
         change: f64,
     },
 }
@@ -885,13 +890,12 @@ impl World {
                 // - the friction bounds μN use the latest normal forces N (staggered
                 //   projections), relaxed with Aitken's dynamic factor: the plain iteration
                 //   alternates (ratio ≈ −0.5) on the card and creeps (≈ +0.3) on the screwdriver.
-                let mut guess = vec![0.0; n];
+                let mut cands = self.candidates_at(&vec![0.0; n]);
                 let mut known: Vec<(ContactKey, f64)> = self.normal_memory.clone();
                 let mut omega: f64 = 1.0;
                 let mut prev: Option<(Vec<ContactKey>, Vec<f64>)> = None;
                 let mut last = None;
                 for _ in 0..self.params.staggered_iterations.max(1) {
-                    let cands = self.candidates_at(&guess);
                     let keys: Vec<ContactKey> = cands.iter().map(|c| c.key).collect();
                     let normals: Vec<f64> = keys
                         .iter()
@@ -928,20 +932,25 @@ impl World {
                     let largest = sol.normal_forces.iter().copied().fold(0.0, f64::max);
                     let tol = self.params.staggered_tolerance
                         + self.params.staggered_relative_tolerance * largest;
-                    let step: f64 = sol
-                        .x
-                        .iter()
-                        .zip(&guess)
-                        .map(|(a, b)| (a - b).powi(2))
-                        .sum::<f64>()
-                        .sqrt();
-                    let size: f64 = sol.x.iter().map(|a| a * a).sum::<f64>().sqrt();
-                    let moved = step > 1e-6 + 1e-2 * size;
-                    unconverged = (change > tol || moved).then_some(change);
-                    guess.clone_from(&sol.x);
-                    let done = unconverged.is_none();
-                    last = Some((sol, cands));
-                    if done {
+                    // Geometry: does the linearisation predict the true signed distances at the
+                    // solution? (New penetrating contacts count as errors.)
+                    let next = self.candidates_at(&sol.x);
+                    let xv = nalgebra::DVector::from_column_slice(&sol.x);
+                    let mut geom: f64 = 0.0;
+                    for nc in &next {
+                        match cands.iter().find(|c| c.key == nc.key) {
+                            Some(c) => {
+                                let predicted =
+                                    c.row.phi + (c.row.normal.transpose() * (&c.row.jac * &xv))[0];
+                                geom = geom.max((nc.phi_at_trial - predicted).abs());
+                            }
+                            None => geom = geom.max(-nc.phi_at_trial),
+                        }
+                    }
+                    let converged = change <= tol && geom <= self.params.geometry_tolerance;
+                    unconverged = (!converged).then_some(change.max(geom));
+                    last = Some((sol, std::mem::replace(&mut cands, next)));
+                    if converged {
                         break;
                     }
                     match &prev {
