@@ -1018,6 +1018,43 @@ impl World {
     }
 }
 
+/// The force columns of a `CONTRACTS.md` §2 action row from a step's contacts: for each task
+/// finger the force it exerts on the object (world frame, N; zero when not touching), then for
+/// the card the environment force `f_env`, the force of the table on the card. 9 numbers in
+/// both scenes.
+pub fn force_columns(scene: SceneKind, contacts: &[ContactReport]) -> Vec<f64> {
+    let object_parts: &[&str] = match scene {
+        SceneKind::Screwdriver => &["shaft", "handle", "cap"],
+        SceneKind::Card => &["card"],
+    };
+    let mut out = Vec::with_capacity(9);
+    for f in scene.task_fingers() {
+        let mut sum = [0.0; 3];
+        for c in contacts
+            .iter()
+            .filter(|c| c.finger == f.name() && object_parts.contains(&c.part.as_str()))
+        {
+            for i in 0..3 {
+                sum[i] += c.force[i];
+            }
+        }
+        out.extend(sum);
+    }
+    if scene == SceneKind::Card {
+        let mut env = [0.0; 3];
+        for c in contacts
+            .iter()
+            .filter(|c| c.finger == "card" && c.part == "table")
+        {
+            for i in 0..3 {
+                env[i] -= c.force[i];
+            }
+        }
+        out.extend(env);
+    }
+    out
+}
+
 /// What one sub-step produced.
 struct SubstepResult {
     dx: Vec<f64>,
@@ -1051,6 +1088,37 @@ mod tests {
             o.apply(&[0.0, 0.0, -0.2]);
         }
         assert!((o.coords()[2] + 8.0).abs() < 1e-9, "{:?}", o.coords());
+    }
+
+    #[test]
+    fn force_columns_follow_the_contract() {
+        let c = |finger: &str, part: &str, force: [f64; 3]| ContactReport {
+            finger: finger.into(),
+            part: part.into(),
+            point: [0.0; 3],
+            normal: [0.0, 0.0, 1.0],
+            force,
+            phi: 0.0,
+        };
+        let contacts = vec![
+            c("index", "card", [0.0, -1.0, -2.0]),
+            c("index", "table", [5.0, 5.0, 5.0]),
+            c("card", "table", [0.0, 0.5, -1.0]),
+            c("card", "table", [0.0, 0.5, -1.1]),
+        ];
+        let cols = force_columns(SceneKind::Card, &contacts);
+        assert_eq!(cols.len(), 9);
+        assert_eq!(&cols[..3], &[0.0, -1.0, -2.0]);
+        assert_eq!(&cols[3..6], &[0.0; 3]);
+        assert!((cols[7] + 1.0).abs() < 1e-12 && (cols[8] - 2.1).abs() < 1e-12);
+        let sd = vec![
+            c("thumb", "handle", [1.0, 0.0, 0.0]),
+            c("thumb", "cap", [0.0, 1.0, 0.0]),
+        ];
+        assert_eq!(
+            force_columns(SceneKind::Screwdriver, &sd)[6..],
+            [1.0, 1.0, 0.0]
+        );
     }
 
     #[test]
