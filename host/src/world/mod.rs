@@ -1034,8 +1034,8 @@ pub fn force_columns(scene: SceneKind, contacts: &[ContactReport]) -> Vec<f64> {
             .iter()
             .filter(|c| c.finger == f.name() && object_parts.contains(&c.part.as_str()))
         {
-            for i in 0..3 {
-                sum[i] += c.force[i];
+            for (s, f) in sum.iter_mut().zip(c.force) {
+                *s += f;
             }
         }
         out.extend(sum);
@@ -1046,8 +1046,8 @@ pub fn force_columns(scene: SceneKind, contacts: &[ContactReport]) -> Vec<f64> {
             .iter()
             .filter(|c| c.finger == "card" && c.part == "table")
         {
-            for i in 0..3 {
-                env[i] -= c.force[i];
+            for (e, f) in env.iter_mut().zip(c.force) {
+                *e -= f;
             }
         }
         out.extend(env);
