@@ -19,3 +19,4 @@ pub mod mode;
 pub mod prior;
 pub mod rng;
 pub mod search;
+pub mod task;

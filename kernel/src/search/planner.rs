@@ -274,6 +274,7 @@ impl<const K: usize, const N: usize, const O: usize, const S: usize> Planner<K, 
             || dims.horizon == 0
             || dims.fingers != task.finger_names().len()
             || problem.prior.modes() != n_modes
+            || !objective.accepts(&dims)
             || problem.executed.is_some_and(|m| m.index() >= n_modes)
         {
             return Err(SearchStatus::InvalidProblem);

@@ -56,6 +56,13 @@ pub trait SegmentScorer {
 /// yaw; card: `y`), takes its score-weighted mean over the node's particles, and evaluates the
 /// terminal cost `φ` and the goal test on that mean.
 pub trait TaskObjective {
+    /// Whether the objective can evaluate segments of these sizes (checked once per call;
+    /// a mismatch is [`crate::search::SearchStatus::InvalidProblem`]).
+    fn accepts(&self, dims: &SegmentDims) -> bool {
+        let _ = dims;
+        true
+    }
+
     /// The CSVTO cost `J` of one raw segment `[T × D]` executed in `mode` (lower is better).
     fn segment_cost(&self, mode: ContactMode, dims: &SegmentDims, segment: &[f32]) -> f32;
 
