@@ -213,7 +213,9 @@ impl TaskObjective for ScrewdriverObjective {
     }
 
     fn terminal_cost(&self, expected_progress: f32) -> f32 {
-        (expected_progress - self.goal_yaw).max(0.0)
+        // max(0, d) that keeps NaN (`f32::max` would drop it).
+        let d = expected_progress - self.goal_yaw;
+        if d <= 0.0 { 0.0 } else { d }
     }
 
     fn goal_reached(&self, expected_progress: f32) -> bool {

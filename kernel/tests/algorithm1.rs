@@ -22,16 +22,17 @@ use dips_kernel::prior::MarkovPrior;
 use dips_kernel::rng::KernelRng;
 use dips_kernel::search::particles::resample;
 use dips_kernel::search::{
-    ApproximateReason, CostToCome, Planner, Problem, SearchConfig, SearchReport, SearchStatus,
-    SearchVariant,
+    ApproximateReason, CostToCome, Problem, SearchConfig, SearchReport, SearchStatus, SearchVariant,
 };
-
-type Small = Planner<2, 64, 64, 6>;
 
 fn step(x: f32, z: f32, m: usize, j: usize) -> (f32, f32) {
     let _ = x;
     if m == 0 {
-        let a = if z == 0.0 { [5.0, 7.0][j] } else { [2.0, 4.0][j] };
+        let a = if z == 0.0 {
+            [5.0, 7.0][j]
+        } else {
+            [2.0, 4.0][j]
+        };
         (-1.0, a)
     } else {
         (1.0, 1.0)
@@ -61,10 +62,15 @@ fn config(seed: u64) -> SearchConfig {
     }
 }
 
-fn run(config: &SearchConfig, goal: f32, prior: &MarkovPrior, executed: Option<ModeId>) -> SearchReport {
+fn run(
+    config: &SearchConfig,
+    goal: f32,
+    prior: &MarkovPrior,
+    executed: Option<ModeId>,
+) -> SearchReport {
     let task = Task::Screwdriver;
     let k = usize::from(config.k);
-    let mut planner = Box::new(Small::new());
+    let mut planner = common::boxed_planner::<2, 64, 64, 6>();
     let mut sampler = StepSampler {
         task,
         k,
@@ -80,7 +86,14 @@ fn run(config: &SearchConfig, goal: f32, prior: &MarkovPrior, executed: Option<M
         prior,
     };
     let objective = LineObjective { goal, slope: 1.0 };
-    planner.plan(config, &problem, &mut sampler, &mut scorer, &objective, &mut NoClock)
+    planner.plan(
+        config,
+        &problem,
+        &mut sampler,
+        &mut scorer,
+        &objective,
+        &mut NoClock,
+    )
 }
 
 fn uniform() -> MarkovPrior {
@@ -97,7 +110,10 @@ fn hand_case_scores_discount_resampling_g_and_h() {
     let seeds = 800;
     for seed in 0..seeds {
         let r = run(&config(seed), -100.0, &uniform(), None);
-        assert_eq!(r.status, SearchStatus::Approximate(ApproximateReason::Exhausted));
+        assert_eq!(
+            r.status,
+            SearchStatus::Approximate(ApproximateReason::Exhausted)
+        );
         assert_eq!(r.modes.as_slice(), &[ModeId(0), ModeId(0)]);
         assert_eq!(r.expected_progress, -2.0);
         assert_eq!(r.terminal_state.as_slice(), &[-2.0, 2.0]);
@@ -181,7 +197,11 @@ fn prior_term_of_the_heuristic_and_replanning_root() {
     .unwrap();
     let r = run(&c, -100.0, &sparse, None);
     let want = 98.0 - 2.0 * (libm::logf(0.8) + libm::logf(0.1));
-    assert!((r.heuristic - want).abs() < 1e-4, "{} vs {want}", r.heuristic);
+    assert!(
+        (r.heuristic - want).abs() < 1e-4,
+        "{} vs {want}",
+        r.heuristic
+    );
 }
 
 #[test]
@@ -203,7 +223,10 @@ fn single_particle_with_zero_score_is_a_dead_child() {
     let r = run(&c, -100.0, &uniform(), None);
     // Root's mode 0 has Ψ = 0 for its only particle: no child. Nothing beats the root's x = 0.
     assert!(r.stats.dead_children >= 1);
-    assert_eq!(r.status, SearchStatus::Approximate(ApproximateReason::Exhausted));
+    assert_eq!(
+        r.status,
+        SearchStatus::Approximate(ApproximateReason::Exhausted)
+    );
     assert!(r.modes.is_empty());
     assert_eq!(r.expected_progress, 0.0);
 }

@@ -4,7 +4,15 @@
 use dips_kernel::budget::Clock;
 use dips_kernel::mode::{ContactMode, SegmentDims, Task};
 use dips_kernel::rng::KernelRng;
-use dips_kernel::search::{SegmentSampler, SegmentScorer, TaskObjective};
+use dips_kernel::search::{Planner, SegmentSampler, SegmentScorer, TaskObjective};
+
+/// A boxed empty planner. Not inlined, so that in debug builds the temporary that
+/// `Box::new` builds on the stack is freed before the caller goes on.
+#[inline(never)]
+pub fn boxed_planner<const K: usize, const N: usize, const O: usize, const S: usize>()
+-> Box<Planner<K, N, O, S>> {
+    Box::new(Planner::new())
+}
 
 /// Which task mode (its index) a contact vector is.
 pub fn mode_index(task: Task, m: ContactMode) -> usize {
