@@ -1,3 +1,7 @@
 //! `dips-host`: the std side of DIPS.
 
 pub mod cli;
+pub mod geometry;
+pub mod kinematics;
+pub mod scenes;
+pub mod world;
