@@ -318,9 +318,9 @@ fn measure<O: TaskObjective>(
             "modes": task.mode_count(),
             "horizon_T": dims.horizon,
             "dim_D": dims.dim(),
-            "gamma": config.gamma,
-            "alpha": config.alpha,
-            "beta": config.beta,
+            "gamma": shortest(config.gamma),
+            "alpha": shortest(config.alpha),
+            "beta": shortest(config.beta),
             "expansions_per_call": config.node_budget,
         },
         "calls": calls,
@@ -341,4 +341,9 @@ fn measure<O: TaskObjective>(
     });
     println!("{}", serde_json::to_string_pretty(&out)?);
     Ok(())
+}
+
+/// An `f32` as the `f64` with the same shortest decimal form (0.9, not 0.8999999761581421).
+fn shortest(x: f32) -> f64 {
+    x.to_string().parse().unwrap_or(f64::from(x))
 }
