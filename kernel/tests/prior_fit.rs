@@ -85,3 +85,42 @@ fn rows_without_data_are_uniform_and_likelihoods_use_the_table() {
     let ll = p.log_likelihood_after(ModeId(3), &[ModeId(0)]);
     assert!((ll - libm::logf(0.25)).abs() < 1e-6);
 }
+
+mod properties {
+    use dips_kernel::mode::{MAX_MODES, ModeId};
+    use dips_kernel::prior::MarkovPrior;
+    use proptest::prelude::*;
+
+    proptest! {
+        /// After the floor every row sums to one, no entry is below p_min, and entries that
+        /// were above the floor keep their order.
+        #[test]
+        fn floored_rows_are_distributions_above_p_min(
+            modes in 1usize..=MAX_MODES,
+            raw in proptest::collection::vec(proptest::collection::vec(0u8..8, 0..12), 0..20),
+            p_frac in 0.0f32..=1.0,
+        ) {
+            let seqs: Vec<Vec<ModeId>> = raw
+                .iter()
+                .map(|s| s.iter().map(|&m| ModeId(m % modes as u8)).collect())
+                .collect();
+            let p_min = p_frac / modes as f32;
+            let fitted = MarkovPrior::fit(modes, &seqs).unwrap();
+            let floored = fitted.with_floor(p_min).unwrap();
+            for from in core::iter::once(None).chain((0..modes).map(|m| Some(ModeId(m as u8)))) {
+                let row: Vec<f32> = (0..modes).map(|m| floored.probability(from, ModeId(m as u8))).collect();
+                let orig: Vec<f32> = (0..modes).map(|m| fitted.probability(from, ModeId(m as u8))).collect();
+                let sum: f32 = row.iter().sum();
+                prop_assert!((sum - 1.0).abs() < 1e-5, "{row:?}");
+                prop_assert!(row.iter().all(|&p| p >= p_min - 1e-6), "{row:?} < {p_min}");
+                for i in 0..modes {
+                    for j in 0..modes {
+                        if orig[i] > orig[j] {
+                            prop_assert!(row[i] >= row[j] - 1e-6, "{orig:?} -> {row:?}");
+                        }
+                    }
+                }
+            }
+        }
+    }
+}

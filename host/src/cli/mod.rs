@@ -1,5 +1,7 @@
 //! The `dips` command line (`CONTRACTS.md` §5). Each command group lives in its own module.
 
+pub mod bench;
+
 use clap::{Parser, Subcommand};
 
 /// DIPS: diffusion-informed probabilistic contact search for multi-finger manipulation.
@@ -13,10 +15,15 @@ pub struct Cli {
 
 /// Top-level commands.
 #[derive(Debug, Subcommand)]
-pub enum Command {}
+pub enum Command {
+    /// Benchmarks that print JSON figures.
+    Bench(bench::BenchArgs),
+}
 
 /// Parse the process arguments and run the command.
 pub fn main() -> anyhow::Result<()> {
     let cli = Cli::parse();
-    match cli.command {}
+    match cli.command {
+        Command::Bench(args) => bench::run(args),
+    }
 }

@@ -689,4 +689,13 @@ mod tests {
         }
         assert_eq!(order_key(f32::NAN), order_key(f32::INFINITY));
     }
+
+    #[test]
+    fn paper_planner_memory_stays_within_budget() {
+        // docs/search.md: 425,512 bytes on x86_64; keep it well under 512 KiB.
+        let size = core::mem::size_of::<PaperPlanner>();
+        assert!(size <= 448 * 1024, "PaperPlanner is {size} bytes");
+        // Particle slots dominate: one per open entry.
+        assert!(size >= 256 * core::mem::size_of::<Particles<16>>());
+    }
 }
