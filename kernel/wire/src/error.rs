@@ -90,7 +90,10 @@ impl fmt::Display for WireError {
             Self::TooLong {
                 len_bytes,
                 max_bytes,
-            } => write!(f, "frame of {len_bytes} bytes exceeds the {max_bytes}-byte limit"),
+            } => write!(
+                f,
+                "frame of {len_bytes} bytes exceeds the {max_bytes}-byte limit"
+            ),
             Self::DecodeFailed => f.write_str("frame payload does not decode as a message"),
             Self::UnknownRequest { tag } => write!(f, "unknown request variant {tag}"),
             Self::VersionMismatch {

@@ -23,7 +23,10 @@ pub const MAX_FRAME_LEN: usize = max(
 pub const MAX_ENCODED_FRAME_LEN: usize = cobs_max_encoded_len(MAX_FRAME_LEN) + 1;
 
 const _: () = assert!(MAX_ENCODED_FRAME_LEN <= u32::MAX as usize);
-const _: () = assert!(MAX_ENCODED_FRAME_LEN < 1024, "frames must stay small for the MCU");
+const _: () = assert!(
+    MAX_ENCODED_FRAME_LEN < 1024,
+    "frames must stay small for the MCU"
+);
 
 /// Encode `frame` (postcard, then COBS, then a `0x00` delimiter) into `out`; returns the
 /// encoded bytes. Fails with [`WireError::TooLong`] when `out` is too small.
@@ -83,8 +86,7 @@ pub fn decode_frame<M: Message>(payload: &[u8]) -> Result<Frame<M>, DecodeError>
         request_id,
         error: WireError::DecodeFailed,
     };
-    let (request_id, rest) =
-        postcard::take_from_bytes::<u32>(payload).map_err(|_| failed(None))?;
+    let (request_id, rest) = postcard::take_from_bytes::<u32>(payload).map_err(|_| failed(None))?;
     let (tag, _) = postcard::take_from_bytes::<u32>(rest).map_err(|_| failed(Some(request_id)))?;
     if tag >= M::VARIANT_COUNT {
         return Err(DecodeError {

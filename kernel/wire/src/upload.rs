@@ -64,8 +64,7 @@ pub struct ModelChunk {
 }
 
 impl MaxSize for ModelChunk {
-    const POSTCARD_MAX_SIZE: usize =
-        u32::POSTCARD_MAX_SIZE + vec_max_size::<u8, MODEL_CHUNK_LEN>();
+    const POSTCARD_MAX_SIZE: usize = u32::POSTCARD_MAX_SIZE + vec_max_size::<u8, MODEL_CHUNK_LEN>();
 }
 
 /// Acknowledges a [`ModelBegin`] or a [`ModelChunk`].

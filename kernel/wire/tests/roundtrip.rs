@@ -87,8 +87,14 @@ fn max_sizes_are_bounds() {
     });
     for msg in [big_chunk, big_request] {
         let mut buf = [0u8; 4096];
-        let plain = postcard::to_slice(&Frame { request_id: u32::MAX, body: msg.clone() }, &mut buf)
-            .unwrap();
+        let plain = postcard::to_slice(
+            &Frame {
+                request_id: u32::MAX,
+                body: msg.clone(),
+            },
+            &mut buf,
+        )
+        .unwrap();
         assert!(plain.len() <= Frame::<ToKernel>::POSTCARD_MAX_SIZE);
         assert!(encode(u32::MAX, msg).len() <= MAX_ENCODED_FRAME_LEN);
     }

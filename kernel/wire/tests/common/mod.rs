@@ -7,7 +7,12 @@ use heapless::Vec;
 use proptest::prelude::*;
 
 pub fn finite_f32() -> impl Strategy<Value = f32> {
-    prop_oneof![-1.0e6f32..1.0e6f32, Just(0.0f32), Just(-0.0f32), Just(f32::MAX)]
+    prop_oneof![
+        -1.0e6f32..1.0e6f32,
+        Just(0.0f32),
+        Just(-0.0f32),
+        Just(f32::MAX)
+    ]
 }
 
 pub fn f32_vec<const N: usize>() -> impl Strategy<Value = Vec<f32, N>> {
@@ -51,9 +56,15 @@ prop_compose! {
 pub fn plan_status() -> impl Strategy<Value = PlanStatus> {
     prop_oneof![
         Just(PlanStatus::Found),
-        Just(PlanStatus::Approximate { reason: ApproximateReason::NodeBudget }),
-        Just(PlanStatus::Approximate { reason: ApproximateReason::TimeBudget }),
-        Just(PlanStatus::Approximate { reason: ApproximateReason::Exhausted }),
+        Just(PlanStatus::Approximate {
+            reason: ApproximateReason::NodeBudget
+        }),
+        Just(PlanStatus::Approximate {
+            reason: ApproximateReason::TimeBudget
+        }),
+        Just(PlanStatus::Approximate {
+            reason: ApproximateReason::Exhausted
+        }),
         Just(PlanStatus::NoPlan),
         Just(PlanStatus::InvalidStart),
         Just(PlanStatus::InvalidGoal),
@@ -81,19 +92,45 @@ prop_compose! {
 pub fn upload_error() -> impl Strategy<Value = UploadError> {
     (any::<u32>(), any::<u32>(), 0u8..6).prop_map(|(a, b, which)| match which {
         0 => UploadError::NotStarted,
-        1 => UploadError::TooLarge { total_len_bytes: a, capacity_bytes: b },
-        2 => UploadError::BadOffset { expected_offset_bytes: a, got_offset_bytes: b },
-        3 => UploadError::Overflow { end_offset_bytes: a, total_len_bytes: b },
-        4 => UploadError::Incomplete { received_bytes: a, total_len_bytes: b },
-        _ => UploadError::CrcMismatch { expected_crc32: a, computed_crc32: b },
+        1 => UploadError::TooLarge {
+            total_len_bytes: a,
+            capacity_bytes: b,
+        },
+        2 => UploadError::BadOffset {
+            expected_offset_bytes: a,
+            got_offset_bytes: b,
+        },
+        3 => UploadError::Overflow {
+            end_offset_bytes: a,
+            total_len_bytes: b,
+        },
+        4 => UploadError::Incomplete {
+            received_bytes: a,
+            total_len_bytes: b,
+        },
+        _ => UploadError::CrcMismatch {
+            expected_crc32: a,
+            computed_crc32: b,
+        },
     })
 }
 
 pub fn wire_error() -> impl Strategy<Value = WireError> {
-    (any::<u32>(), any::<u32>(), any::<u16>(), any::<u64>(), upload_error(), role(), 0u8..11)
+    (
+        any::<u32>(),
+        any::<u32>(),
+        any::<u16>(),
+        any::<u64>(),
+        upload_error(),
+        role(),
+        0u8..11,
+    )
         .prop_map(|(a, b, v, key, upload, role, which)| match which {
             0 => WireError::BadFrame,
-            1 => WireError::TooLong { len_bytes: a, max_bytes: b },
+            1 => WireError::TooLong {
+                len_bytes: a,
+                max_bytes: b,
+            },
             2 => WireError::DecodeFailed,
             3 => WireError::UnknownRequest { tag: a },
             4 => WireError::VersionMismatch {
@@ -121,18 +158,27 @@ pub fn wire_error() -> impl Strategy<Value = WireError> {
 pub fn to_kernel() -> impl Strategy<Value = ToKernel> {
     prop_oneof![
         (any::<u16>(), any::<u64>()).prop_map(|(protocol_version, schema_key)| {
-            ToKernel::Hello(Hello { protocol_version, schema_key })
+            ToKernel::Hello(Hello {
+                protocol_version,
+                schema_key,
+            })
         }),
         plan_request().prop_map(ToKernel::PlanRequest),
         (role(), any::<u32>(), any::<u32>()).prop_map(|(role, total_len_bytes, crc32)| {
-            ToKernel::ModelBegin(ModelBegin { role, total_len_bytes, crc32 })
+            ToKernel::ModelBegin(ModelBegin {
+                role,
+                total_len_bytes,
+                crc32,
+            })
         }),
-        (any::<u32>(), proptest::collection::vec(any::<u8>(), 0..=MODEL_CHUNK_LEN)).prop_map(
-            |(offset_bytes, bytes)| ToKernel::ModelChunk(ModelChunk {
+        (
+            any::<u32>(),
+            proptest::collection::vec(any::<u8>(), 0..=MODEL_CHUNK_LEN)
+        )
+            .prop_map(|(offset_bytes, bytes)| ToKernel::ModelChunk(ModelChunk {
                 offset_bytes,
                 bytes: Vec::from_slice(&bytes).expect("bounded"),
-            })
-        ),
+            })),
         Just(ToKernel::ModelEnd),
     ]
 }
@@ -149,10 +195,18 @@ pub fn from_kernel() -> impl Strategy<Value = FromKernel> {
         }),
         plan_reply().prop_map(FromKernel::PlanReply),
         (role(), any::<u32>(), any::<u32>()).prop_map(|(role, received_bytes, total_len_bytes)| {
-            FromKernel::ModelAck(ModelAck { role, received_bytes, total_len_bytes })
+            FromKernel::ModelAck(ModelAck {
+                role,
+                received_bytes,
+                total_len_bytes,
+            })
         }),
         (role(), any::<u32>(), any::<u32>()).prop_map(|(role, len_bytes, crc32)| {
-            FromKernel::ModelLoaded(ModelLoaded { role, len_bytes, crc32 })
+            FromKernel::ModelLoaded(ModelLoaded {
+                role,
+                len_bytes,
+                crc32,
+            })
         }),
         wire_error().prop_map(FromKernel::Error),
     ]
@@ -176,7 +230,11 @@ pub fn deframe<M: Message>(
     let mut rest = stream;
     let mut sizes = chunk_sizes.iter().cycle();
     while !rest.is_empty() {
-        let n = sizes.next().copied().unwrap_or(rest.len()).clamp(1, rest.len());
+        let n = sizes
+            .next()
+            .copied()
+            .unwrap_or(rest.len())
+            .clamp(1, rest.len());
         let (mut window, tail) = rest.split_at(n);
         rest = tail;
         loop {
