@@ -206,12 +206,13 @@ impl<const N: usize> FrameAccumulator<N> {
     fn push(&mut self, bytes: &[u8]) {
         // N counts the delimiter too, so at most N - 1 encoded bytes are kept.
         let room = N.saturating_sub(1).saturating_sub(self.len);
-        if self.dropped == 0 && bytes.len() <= room {
-            if let Some(dest) = self.buf.get_mut(self.len..self.len + bytes.len()) {
-                dest.copy_from_slice(bytes);
-                self.len += bytes.len();
-                return;
-            }
+        if self.dropped == 0
+            && bytes.len() <= room
+            && let Some(dest) = self.buf.get_mut(self.len..self.len + bytes.len())
+        {
+            dest.copy_from_slice(bytes);
+            self.len += bytes.len();
+            return;
         }
         self.dropped = self.dropped.saturating_add(bytes.len());
     }

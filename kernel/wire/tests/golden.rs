@@ -23,7 +23,7 @@ fn canonical_to_kernel() -> std::vec::Vec<ToKernel> {
         ToKernel::PlanRequest(PlanRequest {
             task: Task::Screwdriver,
             start_state: Vec::from_slice(&[0.5, -1.0, 0.0, 1.0]).unwrap(),
-            goal: -1.047_197_6,
+            goal: -core::f32::consts::FRAC_PI_3,
             settings: SearchSettings {
                 seed: 42,
                 ..SearchSettings::default()
