@@ -28,6 +28,10 @@ const _: () = assert!(
     "frames must stay small for the MCU"
 );
 
+/// The request id of replies to frames whose own id could not be read (hosts number their
+/// requests from 1).
+pub const NO_REQUEST_ID: u32 = 0;
+
 /// Encode `frame` (postcard, then COBS, then a `0x00` delimiter) into `out`; returns the
 /// encoded bytes. Fails with [`WireError::TooLong`] when `out` is too small.
 pub fn encode_frame<'o, B: Serialize>(

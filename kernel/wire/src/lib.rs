@@ -29,8 +29,8 @@ pub mod upload;
 
 pub use error::{RequestField, WireError};
 pub use framing::{
-    DecodeError, Feed, FrameAccumulator, MAX_ENCODED_FRAME_LEN, MAX_FRAME_LEN, decode_frame,
-    encode_frame,
+    DecodeError, Feed, FrameAccumulator, MAX_ENCODED_FRAME_LEN, MAX_FRAME_LEN, NO_REQUEST_ID,
+    decode_frame, encode_frame,
 };
 pub use messages::{Frame, FromKernel, Hello, HelloAck, Message, ToKernel};
 pub use plan::{
