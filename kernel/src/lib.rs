@@ -13,5 +13,6 @@
 #[cfg(test)]
 extern crate std;
 
+pub mod diffusion;
 pub mod engine;
 pub mod rng;
