@@ -14,6 +14,7 @@
 extern crate std;
 
 pub mod budget;
+pub mod diffusion;
 pub mod engine;
 pub mod mode;
 pub mod prior;
