@@ -125,7 +125,11 @@ fn encode_into_small_buffer_is_an_error() {
 }
 
 proptest! {
-    #![proptest_config(ProptestConfig::with_cases(256))]
+    #![proptest_config(ProptestConfig {
+        cases: 256,
+        failure_persistence: None,
+        ..ProptestConfig::default()
+    })]
 
     /// Good frames with one corrupted frame (random bytes overwritten, delimiters kept) in
     /// the middle, fed in random chunk sizes: every good frame still decodes, and the
