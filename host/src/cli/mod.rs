@@ -18,17 +18,17 @@ pub struct Cli {
 /// Top-level commands.
 #[derive(Debug, Subcommand)]
 pub enum Command {
-    /// Quasi-static test world: run actions, draw scenes and trajectories.
-    Sim(sim::SimArgs),
     /// Benchmarks that print JSON figures.
     Bench(bench::BenchArgs),
+    /// Quasi-static test world: run actions, draw scenes and trajectories.
+    Sim(sim::SimArgs),
 }
 
 /// Parse the process arguments and run the command.
 pub fn main() -> anyhow::Result<()> {
     let cli = Cli::parse();
     match cli.command {
+        Command::Bench(args) => bench::run(args),
         Command::Sim(args) => sim::main(args),
-        Command::Bench(args) => bench::main(args),
     }
 }
