@@ -230,3 +230,30 @@ fn solver_failure_surfaces_as_error_and_keeps_state() {
     }
     assert_eq!(w.state(), before);
 }
+
+/// Random actions (|Δq| up to 0.15 rad per joint, the size CSVTO clamps to) never make the
+/// world fail, and contacts never penetrate by more than 1 mm. Flags are allowed but counted.
+#[test]
+fn random_actions_are_robust() {
+    let mut rng = dips_kernel::rng::KernelRng::seed_from_u64(7);
+    let mut flagged = 0;
+    let mut worst: f64 = 0.0;
+    for scene in SceneKind::ALL {
+        for episode in 0..4 {
+            let mut w = World::new(scene);
+            for _ in 0..10 {
+                let dq: Vec<f64> = (0..scene.action_dim())
+                    .map(|_| 0.3 * (rng.uniform_f64() - 0.5))
+                    .collect();
+                let r = w
+                    .step_action(&dq)
+                    .unwrap_or_else(|e| panic!("{scene:?} episode {episode}: {e}"));
+                worst = worst.max(r.max_penetration);
+                flagged += usize::from(!r.flags.is_empty());
+                assert!(w.state().iter().all(|v| v.is_finite()));
+            }
+        }
+    }
+    eprintln!("random actions: worst penetration {worst:e} m, {flagged} flagged of 80");
+    assert!(worst < 1e-3, "penetration {worst}");
+}
