@@ -152,3 +152,40 @@ fn run_with_log_is_replayable() {
     }
     std::fs::remove_dir_all(&dir).ok();
 }
+
+#[test]
+fn hand_file_is_loaded_at_run_time() {
+    let dir = tmpdir("hand");
+    let c = dir.join("cmds.json");
+    std::fs::write(&c, r#"{"dq": [[0,0,0,0,0,0,0,0]]}"#).unwrap();
+    let good = dir.join("hand.json");
+    std::fs::write(&good, dips_host::kinematics::DEFAULT_HAND_JSON).unwrap();
+    let bad = dir.join("bad_hand.json");
+    std::fs::write(
+        &bad,
+        dips_host::kinematics::DEFAULT_HAND_JSON
+            .replace("\"tip_radius\": 0.015", "\"tip_radius\": 0"),
+    )
+    .unwrap();
+    for (hand, ok) in [(&good, true), (&bad, false)] {
+        let o = dips()
+            .args(["sim", "run", "--scene", "card", "--commands"])
+            .arg(&c)
+            .arg("--out")
+            .arg(dir.join("out.json"))
+            .arg("--hand")
+            .arg(hand)
+            .output()
+            .unwrap();
+        assert_eq!(
+            o.status.success(),
+            ok,
+            "{}",
+            String::from_utf8_lossy(&o.stderr)
+        );
+        if !ok {
+            assert!(String::from_utf8_lossy(&o.stderr).contains("tip_radius must be positive"));
+        }
+    }
+    std::fs::remove_dir_all(&dir).ok();
+}
