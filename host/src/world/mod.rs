@@ -71,6 +71,10 @@ pub struct WorldParams {
     /// Staggered iterations also require the linearised signed distances to match the true
     /// ones at the solution to within this (m).
     pub geometry_tolerance: f64,
+    /// When staggered iterations do not settle, solve that sub-step with the Anitescu cone
+    /// (flagged `friction_fallback`) instead of applying the last iterate (flagged
+    /// `friction_not_converged`).
+    pub staggered_fallback: bool,
 }
 
 /// Friction formulation of the contact step.
@@ -124,6 +128,7 @@ impl WorldParams {
             staggered_tolerance: 1e-3,
             staggered_relative_tolerance: 0.02,
             geometry_tolerance: 2e-5,
+            staggered_fallback: true,
         }
     }
 
@@ -279,8 +284,16 @@ pub enum StepFlag {
     /// The screwdriver's roll or pitch passed its ±1.57 joint limit (not modelled as a stop).
     TiltLimit,
     /// Staggered friction iterations hit their limit before the normal forces (and the
-    /// re-linearised geometry) settled.
+    /// re-linearised geometry) settled; the last iterate was applied.
     FrictionNotConverged {
+        /// Sub-step index within the action.
+        substep: usize,
+        /// Largest remaining normal-force change (N) or signed-distance mismatch (m).
+        change: f64,
+    },
+    /// Staggered friction did not settle and this sub-step used the Anitescu cone instead
+    /// ([`WorldParams::staggered_fallback`]).
+    FrictionFallback {
         /// Sub-step index within the action.
         substep: usize,
         /// Largest remaining normal-force change (N) or signed-distance mismatch (m).
@@ -651,6 +664,7 @@ impl World {
                 solves,
                 status,
                 unconverged,
+                fell_back,
                 memory,
             } = match self.solve_substep(&q_cmd, substep) {
                 Ok(v) => v,
@@ -671,9 +685,11 @@ impl World {
                 report.flags.push(StepFlag::ReducedAccuracy { substep });
             }
             if let Some(change) = unconverged {
-                report
-                    .flags
-                    .push(StepFlag::FrictionNotConverged { substep, change });
+                report.flags.push(if fell_back {
+                    StepFlag::FrictionFallback { substep, change }
+                } else {
+                    StepFlag::FrictionNotConverged { substep, change }
+                });
             }
             self.apply_increment(&dx);
             self.last_contacts = contacts;
@@ -864,20 +880,25 @@ impl World {
         let mut solves = 0;
         let mut unconverged = None;
         let mut worst_status = SolverStatus::Solved;
+        let anitescu = || -> Result<(socp::Solution, Vec<contacts::Candidate>), WorldError> {
+            let cands = self.candidates_at(&vec![0.0; n]);
+            let rows: Vec<socp::ConeRow> = cands.iter().map(|c| c.row.clone()).collect();
+            let prog = socp::Program {
+                p: &p,
+                c: &c,
+                cones: &rows,
+                bounds: &bounds,
+                max_iter: self.params.solver_max_iter,
+                friction: socp::FrictionForm::Anitescu,
+            };
+            let sol = socp::solve(&prog).map_err(WorldError::Setup)?;
+            check(&sol)?;
+            Ok((sol, cands))
+        };
+        let mut fell_back = false;
         let (sol, cands) = match self.params.friction_model {
             FrictionModel::Anitescu => {
-                let cands = self.candidates_at(&vec![0.0; n]);
-                let rows: Vec<socp::ConeRow> = cands.iter().map(|c| c.row.clone()).collect();
-                let prog = socp::Program {
-                    p: &p,
-                    c: &c,
-                    cones: &rows,
-                    bounds: &bounds,
-                    max_iter: self.params.solver_max_iter,
-                    friction: socp::FrictionForm::Anitescu,
-                };
-                let sol = socp::solve(&prog).map_err(WorldError::Setup)?;
-                check(&sol)?;
+                let (sol, cands) = anitescu()?;
                 iters += sol.iterations;
                 solves += 1;
                 worst_status = sol.status;
@@ -972,7 +993,22 @@ impl World {
                         .collect();
                     prev = Some((keys, residual));
                 }
-                last.ok_or_else(|| WorldError::Setup("no staggered iteration ran".into()))?
+                let result =
+                    last.ok_or_else(|| WorldError::Setup("no staggered iteration ran".into()))?;
+                if unconverged.is_some() && self.params.staggered_fallback {
+                    // No fixed point (e.g. wedging at high μ): take the convex cone model's
+                    // answer for this sub-step and say so.
+                    let (sol, cands) = anitescu()?;
+                    iters += sol.iterations;
+                    solves += 1;
+                    if sol.status == SolverStatus::AlmostSolved {
+                        worst_status = SolverStatus::AlmostSolved;
+                    }
+                    fell_back = true;
+                    (sol, cands)
+                } else {
+                    result
+                }
             }
         };
         let memory = cands
@@ -1003,6 +1039,7 @@ impl World {
             solves,
             status: worst_status,
             unconverged,
+            fell_back,
             memory,
         })
     }
@@ -1063,6 +1100,7 @@ struct SubstepResult {
     solves: u32,
     status: SolverStatus,
     unconverged: Option<f64>,
+    fell_back: bool,
     memory: Vec<(ContactKey, f64)>,
 }
 
