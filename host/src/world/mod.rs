@@ -1,11 +1,13 @@
 //! The quasi-static test world that stands in for Isaac Gym (spec §1.2 and §4).
 //!
 //! One action is the paper's 1 s held joint-position command, split into
-//! [`WorldParams::substeps`] sub-steps of length `h`. Each sub-step solves one second-order cone
+//! [`WorldParams::substeps`] sub-steps of length `h`. Each sub-step solves a second-order cone
 //! program with Clarabel (see `socp`): the task fingers are stiff joint springs (stiffness `kp`)
 //! toward their commanded positions, the object carries an `s`-scaled mass regulariser plus
 //! damping `D/h` and gravity, and every contact within [`WorldParams::contact_margin`] adds one
-//! Anitescu friction cone. The cone duals are the contact forces. Sub-steps stop early once
+//! friction cone: the Anitescu cone (screwdriver), or non-penetration plus a
+//! maximum-dissipation cone with a normal force iterated to a fixed point (card; see
+//! [`FrictionModel`]). The duals are the contact forces. Sub-steps stop early once
 //! `‖δq‖ < early_stop`. See `docs/world.md` for the model and its artifacts.
 
 pub mod bench;
