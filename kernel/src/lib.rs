@@ -13,6 +13,7 @@
 #[cfg(test)]
 extern crate std;
 
+pub mod adapters;
 pub mod budget;
 pub mod diffusion;
 pub mod engine;
@@ -21,3 +22,4 @@ pub mod prior;
 pub mod rng;
 pub mod search;
 pub mod task;
+pub mod wire_convert;
