@@ -8,17 +8,17 @@ use common::screwdriver_start;
 use dips_kernel::adapters::*;
 use dips_kernel::budget::NoClock;
 use dips_kernel::diffusion::{
-    SampleRequest, SamplerConfig, SamplerScratch, ScratchLayout, SamplingMethod, sample,
+    SampleRequest, SamplerConfig, SamplerScratch, SamplingMethod, ScratchLayout, sample,
 };
 use dips_kernel::engine::DenoiserEngine;
 use dips_kernel::mode::{ContactMode, ModeId, SegmentDims, Task};
 use dips_kernel::prior::MarkovPrior;
 use dips_kernel::rng::KernelRng;
+use dips_kernel::search::TaskObjective;
 use dips_kernel::search::{
     ApproximateReason, Problem, SearchConfig, SearchReport, SearchStatus, SegmentSampler,
     SegmentScorer,
 };
-use dips_kernel::search::TaskObjective;
 use dips_kernel::task::ScrewdriverObjective;
 use engines::{GaussianDenoiser, LogisticDiscriminator, TURN};
 
@@ -86,8 +86,8 @@ fn plan_screwdriver(
             &b.sampler_layout,
         )
         .unwrap();
-        let mut scorer = DiscriminatorScorer::new(&mut disc, &mut b.scorer, &b.scorer_layout)
-            .unwrap();
+        let mut scorer =
+            DiscriminatorScorer::new(&mut disc, &mut b.scorer, &b.scorer_layout).unwrap();
         planner.plan(
             config,
             &problem,
@@ -172,7 +172,10 @@ fn sampler_adapter_is_the_diffusion_sampler_with_modes_as_context() {
         let turned = yaw_of(&seg[12 * d..]) - yaw_of(seg);
         if i == 0 || i == 3 {
             // Guidance 1.2 overshoots the conditioned turn a little.
-            assert!(turned < 0.9 * TURN && turned > 1.5 * TURN, "turn {i}: {turned}");
+            assert!(
+                turned < 0.9 * TURN && turned > 1.5 * TURN,
+                "turn {i}: {turned}"
+            );
         } else {
             assert!(turned.abs() < 0.1, "regrasp {i}: {turned}");
         }
@@ -277,7 +280,9 @@ fn mismatched_models_and_calls_get_typed_errors() {
         .unwrap_err();
     assert_eq!(err, SegmentModelError::Adapter(AdapterError::Dims(horizon)));
     let mut p = [0.0f32];
-    let err = scorer.score(&screwdriver, &out, &[turn], &mut p).unwrap_err();
+    let err = scorer
+        .score(&screwdriver, &out, &[turn], &mut p)
+        .unwrap_err();
     assert_eq!(err, SegmentModelError::Adapter(AdapterError::Dims(horizon)));
 
     // A mode of the other task, too many segments, short buffers.
@@ -421,7 +426,10 @@ fn full_planning_call_through_both_adapters_finds_two_turns() {
     // One sampler call (3 modes × 16 particles) and one scorer call per expansion.
     let s = report.stats;
     assert!(s.nodes_expanded >= 2);
-    assert_eq!((s.sampler_calls, s.scorer_calls), (s.nodes_expanded, s.nodes_expanded));
+    assert_eq!(
+        (s.sampler_calls, s.scorer_calls),
+        (s.nodes_expanded, s.nodes_expanded)
+    );
     assert_eq!(s.segments_sampled, 48 * s.nodes_expanded);
     // DDPM visits every step; 48 trajectories in chunks of 16 are 3 engine calls per step,
     // each of a conditioned and an unconditioned copy.
@@ -443,7 +451,10 @@ fn planning_through_the_adapters_is_deterministic_for_a_seed() {
     let (b, ..) = plan_screwdriver(&config, SamplerConfig::default(), 5);
     let bits = |r: &SearchReport| {
         (
-            r.terminal_state.iter().map(|v| v.to_bits()).collect::<Vec<_>>(),
+            r.terminal_state
+                .iter()
+                .map(|v| v.to_bits())
+                .collect::<Vec<_>>(),
             r.expected_progress.to_bits(),
             r.cost_to_come.to_bits(),
             r.heuristic.to_bits(),
@@ -452,10 +463,7 @@ fn planning_through_the_adapters_is_deterministic_for_a_seed() {
     assert_eq!(a, b);
     assert_eq!(bits(&a), bits(&b));
     let (c, ..) = plan_screwdriver(
-        &SearchConfig {
-            seed: 6,
-            ..config
-        },
+        &SearchConfig { seed: 6, ..config },
         SamplerConfig::default(),
         16,
     );

@@ -144,13 +144,23 @@ impl DenoiserEngine for GaussianDenoiser {
         self.samples += batch;
         let (rows, d, f) = (self.dims.horizon, self.dims.dim(), self.dims.fingers);
         let td = rows * d;
-        assert!(batch <= self.max_batch, "batch {batch} over {}", self.max_batch);
+        assert!(
+            batch <= self.max_batch,
+            "batch {batch} over {}",
+            self.max_batch
+        );
         assert_eq!((x.len(), eps.len()), (batch * td, batch * td));
-        assert_eq!((t.len(), cond_mask.len(), context.len()), (batch, batch, batch * f));
+        assert_eq!(
+            (t.len(), cond_mask.len(), context.len()),
+            (batch, batch, batch * f)
+        );
         for b in 0..batch {
             let ab = self.alpha_bar[t[b] as usize];
             let ctx = &context[b * f..(b + 1) * f];
-            assert!(ctx.iter().all(|&c| c == 1.0 || c == -1.0), "context {ctx:?}");
+            assert!(
+                ctx.iter().all(|&c| c == 1.0 || c == -1.0),
+                "context {ctx:?}"
+            );
             let turn = cond_mask[b] > 0.5 && ctx.iter().all(|&c| c > 0.0);
             let xb = &x[b * td..(b + 1) * td];
             let y0 = &xb[..self.dims.state_dim];
@@ -255,7 +265,10 @@ impl DiscriminatorEngine for LogisticDiscriminator {
         self.calls += 1;
         let (td, f) = (self.dims.floats_per_trajectory(), self.dims.fingers);
         assert!(batch <= self.max_batch);
-        assert_eq!((x.len(), context.len(), p_real.len()), (batch * td, batch * f, batch));
+        assert_eq!(
+            (x.len(), context.len(), p_real.len()),
+            (batch * td, batch * f, batch)
+        );
         if self.record {
             self.seen_x.extend_from_slice(x);
             self.seen_context.extend_from_slice(context);
