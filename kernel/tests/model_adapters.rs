@@ -400,8 +400,7 @@ fn a_planner_refuses_models_of_another_task() {
     );
     assert_eq!(report.status, SearchStatus::InvalidProblem);
     assert_eq!(report.stats.sampler_calls, 0);
-    drop(sampler);
-    assert_eq!(denoiser.calls, 0);
+    assert_eq!(sampler.engine().calls, 0);
 }
 
 #[test]

@@ -63,16 +63,10 @@ impl GaussianDenoiser {
         let (sd, d) = (dims.state_dim, dims.dim());
         let mut mean = vec![0.0f32; d];
         let mut std = vec![1.0f32; d];
-        for j in 0..sd - 4 {
-            mean[j] = 0.5;
-            std[j] = 0.3;
-        }
-        for j in sd - 4..sd - 2 {
-            std[j] = 0.05;
-        }
-        for j in sd..d {
-            std[j] = 0.1;
-        }
+        mean[..sd - 4].fill(0.5);
+        std[..sd - 4].fill(0.3);
+        std[sd - 4..sd - 2].fill(0.05);
+        std[sd..].fill(0.1);
         Self {
             dims,
             mean,
