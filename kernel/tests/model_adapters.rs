@@ -8,7 +8,8 @@ use common::screwdriver_start;
 use dips_kernel::adapters::*;
 use dips_kernel::budget::NoClock;
 use dips_kernel::diffusion::{
-    SampleRequest, SamplerConfig, SamplerScratch, SamplingMethod, ScratchLayout, sample,
+    SampleRequest, SamplerConfig, SamplerError, SamplerScratch, SamplingMethod, ScratchBuffer,
+    ScratchLayout, sample,
 };
 use dips_kernel::engine::DenoiserEngine;
 use dips_kernel::mode::{ContactMode, ModeId, SegmentDims, Task};
@@ -358,6 +359,32 @@ fn mismatched_models_and_calls_get_typed_errors() {
             ..
         }
     ));
+    // A diffusion scratch whose `x` cannot hold one guided pair is the sampler's own error.
+    let (mut ab, mut x, mut eps) = (vec![0.0f32; STEPS], vec![0.0f32; 10], vec![0.0f32; 522]);
+    let (mut t, mut c, mut m, mut ctx) = ([0.0f32; 2], [0.0f32; 4], [0.0f32; 2], [0.0f32; 8]);
+    let scratch = SamplerScratch {
+        alpha_bar: &mut ab,
+        x: &mut x,
+        eps: &mut eps,
+        t: &mut t,
+        context: &mut c,
+        cond_mask: &mut m,
+    };
+    let err = DiffusionSegmentSampler::from_parts(
+        GaussianDenoiser::new(Task::Card, STEPS),
+        SamplerConfig::default(),
+        scratch,
+        &mut ctx,
+    )
+    .unwrap_err();
+    assert_eq!(
+        err,
+        AdapterError::Sampler(SamplerError::ScratchTooSmall {
+            buffer: ScratchBuffer::X,
+            needed: 2 * 9 * 29,
+            got: 10
+        })
+    );
     let mut bad_norm = LogisticDiscriminator::new(Task::Card);
     bad_norm.std[3] = 0.0;
     let layout = ScorerAdapterLayout::new(bad_norm.dims, 1);

@@ -2,7 +2,7 @@
 
 use core::fmt;
 
-use crate::diffusion::SampleError;
+use crate::diffusion::{SampleError, SamplerError};
 
 /// A segment size that a model and a problem disagree on.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -114,6 +114,9 @@ pub enum AdapterError {
     BadNormalization,
     /// The engine accepts no batch at all (`max_batch() == 0`).
     EngineBatch,
+    /// The diffusion sampler refused its scratch (a buffer too small for one trajectory
+    /// pair or for the schedule).
+    Sampler(SamplerError),
 }
 
 impl fmt::Display for AdapterError {
@@ -150,6 +153,7 @@ impl fmt::Display for AdapterError {
                 f.write_str("model normalization is not D finite means and positive stds")
             }
             Self::EngineBatch => f.write_str("engine accepts no batch (max_batch 0)"),
+            Self::Sampler(e) => write!(f, "diffusion sampler scratch: {e}"),
         }
     }
 }

@@ -137,20 +137,9 @@ impl<'s, E: DenoiserEngine> DiffusionSegmentSampler<'s, E> {
     }
 }
 
-/// The diffusion scratch's own size errors, as the adapter's.
+/// The diffusion scratch's own checks, as the adapter's error.
 fn scratch_error(e: SamplerError) -> AdapterError {
-    match e {
-        SamplerError::ScratchTooSmall { needed, got, .. } => AdapterError::ScratchTooSmall {
-            buffer: AdapterBuffer::Sampler,
-            needed,
-            got,
-        },
-        _ => AdapterError::ScratchTooSmall {
-            buffer: AdapterBuffer::Sampler,
-            needed: 1,
-            got: 0,
-        },
-    }
+    AdapterError::Sampler(e)
 }
 
 /// Write each mode's signs (±1) as a row of `F` floats into `context`.
