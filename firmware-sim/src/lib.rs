@@ -19,8 +19,8 @@ use dips_wire::{
     SCHEMA_KEY, ToKernel, UploadError, WireError, decode_frame, encode_frame,
 };
 
-/// Default size of each model buffer of the `dips-firmware-sim` binary, in bytes.
-pub const DEFAULT_MODEL_CAPACITY_BYTES: usize = 32 * 1024 * 1024;
+/// Size of each static model buffer of the `dips-firmware-sim` binary, in bytes.
+pub const MODEL_CAPACITY_BYTES: usize = 32 * 1024 * 1024;
 
 /// Bytes read from the input stream per read call.
 const READ_CHUNK_LEN: usize = 256;
@@ -43,6 +43,16 @@ impl<'m> Firmware<'m> {
             denoiser: ModelAssembler::new(denoiser_buf),
             discriminator: ModelAssembler::new(discriminator_buf),
             active_upload: None,
+        }
+    }
+
+    /// Start a new session (a new connection): a new `Hello` is required and any upload in
+    /// progress is abandoned. Loaded models stay loaded.
+    pub fn reset_session(&mut self) {
+        self.greeted = false;
+        if let Some(role) = self.active_upload.take() {
+            // Ending an unfinished upload discards it (the error is the point).
+            let _ = self.assembler_mut(role).end();
         }
     }
 

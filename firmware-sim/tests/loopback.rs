@@ -316,3 +316,40 @@ fn invalid_plan_fields_are_named() {
         })
     );
 }
+
+mod garbage {
+    use super::*;
+    use proptest::prelude::*;
+
+    proptest! {
+        #![proptest_config(ProptestConfig {
+            cases: 128,
+            failure_persistence: None,
+            ..ProptestConfig::default()
+        })]
+
+        /// Hello frames separated by arbitrary garbage (each garbage run ended by a delimiter):
+        /// every Hello is answered with its own id, whatever the garbage and the read sizes.
+        #[test]
+        fn garbage_between_frames_costs_only_itself(
+            garbage in proptest::collection::vec(proptest::collection::vec(any::<u8>(), 0..200), 1..6),
+        ) {
+            let mut input = Vec::new();
+            for (i, junk) in garbage.iter().enumerate() {
+                input.extend(frame_bytes(i as u32 + 1, ToKernel::Hello(Hello::current())));
+                input.extend(junk);
+                input.push(0);
+            }
+            for trickle in [false, true] {
+                let (out, _) = run(&input, 64, trickle);
+                let acks: Vec<u32> = out
+                    .iter()
+                    .filter(|f| matches!(f.body, FromKernel::HelloAck(_)))
+                    .map(|f| f.request_id)
+                    .collect();
+                let want: Vec<u32> = (1..=garbage.len() as u32).collect();
+                prop_assert_eq!(acks, want);
+            }
+        }
+    }
+}

@@ -145,7 +145,9 @@ pub fn sample<E: DenoiserEngine>(
 
     let norm = engine.normalization();
     denormalize_in_place(&norm, out);
-    if let Some(starts) = request.start_states {
+    if let Some(starts) = request.start_states
+        && dims.state_dim > 0
+    {
         let td = dims.floats_per_trajectory();
         for (traj, s0) in out.chunks_mut(td).zip(starts.chunks(dims.state_dim)) {
             if let Some(row0) = traj.get_mut(..dims.state_dim) {

@@ -33,15 +33,21 @@ const _: () = assert!(
 pub const NO_REQUEST_ID: u32 = 0;
 
 /// Encode `frame` (postcard, then COBS, then a `0x00` delimiter) into `out`; returns the
-/// encoded bytes. Fails with [`WireError::TooLong`] when `out` is too small.
+/// encoded bytes. Fails with [`WireError::TooLong`] (the frame's worst-case encoded length and
+/// the buffer's length) when `out` is too small.
 pub fn encode_frame<'o, B: Serialize>(
     frame: &Frame<B>,
     out: &'o mut [u8],
 ) -> Result<&'o mut [u8], WireError> {
     let out_len = out.len();
-    postcard::to_slice_cobs(frame, out).map_err(|_| WireError::TooLong {
-        len_bytes: u32::try_from(out_len.saturating_add(1)).unwrap_or(u32::MAX),
-        max_bytes: u32::try_from(out_len).unwrap_or(u32::MAX),
+    postcard::to_slice_cobs(frame, out).map_err(|_| {
+        let needed = postcard::experimental::serialized_size(frame).map_or(usize::MAX, |len| {
+            cobs_max_encoded_len(len).saturating_add(1)
+        });
+        WireError::TooLong {
+            len_bytes: u32::try_from(needed).unwrap_or(u32::MAX),
+            max_bytes: u32::try_from(out_len).unwrap_or(u32::MAX),
+        }
     })
 }
 

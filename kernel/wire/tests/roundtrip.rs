@@ -8,7 +8,11 @@ use dips_wire::*;
 use proptest::prelude::*;
 
 proptest! {
-    #![proptest_config(ProptestConfig::with_cases(512))]
+    #![proptest_config(ProptestConfig {
+        cases: 512,
+        failure_persistence: None,
+        ..ProptestConfig::default()
+    })]
 
     #[test]
     fn to_kernel_round_trips(id in any::<u32>(), msg in to_kernel()) {

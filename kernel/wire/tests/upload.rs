@@ -192,3 +192,86 @@ fn errors_display_their_numbers() {
     assert!(text.contains("512") && text.contains("offset"), "{text}");
     assert!(core::error::Error::source(&e).is_some());
 }
+
+mod assembler_properties {
+    use dips_wire::*;
+    use heapless::Vec;
+    use proptest::prelude::*;
+
+    #[derive(Debug, Clone)]
+    enum Step {
+        Begin { total: u32, crc: u32 },
+        Chunk { offset: u32, len: usize, fill: u8 },
+        End,
+    }
+
+    fn step() -> impl Strategy<Value = Step> {
+        prop_oneof![
+            (0u32..3000, any::<u32>()).prop_map(|(total, crc)| Step::Begin { total, crc }),
+            (0u32..3000, 0usize..=MODEL_CHUNK_LEN, any::<u8>())
+                .prop_map(|(offset, len, fill)| Step::Chunk { offset, len, fill }),
+            Just(Step::End),
+        ]
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig {
+            cases: 512,
+            failure_persistence: None,
+            ..ProptestConfig::default()
+        })]
+
+        /// Any sequence of steps: no panic, acks count exactly the accepted bytes, and a
+        /// model is reported only after an end whose CRC matched the bytes stored.
+        #[test]
+        fn random_steps_keep_the_invariants(steps in proptest::collection::vec(step(), 0..40)) {
+            let mut buf = vec![0u8; 2048];
+            let mut asm = ModelAssembler::new(&mut buf);
+            let mut expected: Option<(u32, u32, u32)> = None; // (total, crc, received)
+            for s in steps {
+                match s {
+                    Step::Begin { total, crc } => {
+                        let r = asm.begin(&ModelBegin { role: ModelRole::Denoiser, total_len_bytes: total, crc32: crc });
+                        prop_assert_eq!(r.is_ok(), total <= 2048);
+                        expected = r.ok().map(|_| (total, crc, 0));
+                        prop_assert!(asm.model().is_none());
+                    }
+                    Step::Chunk { offset, len, fill } => {
+                        let chunk = ModelChunk { offset_bytes: offset, bytes: Vec::from_slice(&vec![fill; len]).unwrap() };
+                        let r = asm.chunk(&chunk);
+                        match &mut expected {
+                            None => prop_assert_eq!(r, Err(UploadError::NotStarted)),
+                            Some((total, _, received)) => {
+                                let fits = offset == *received && offset as usize + len <= *total as usize;
+                                prop_assert_eq!(r.is_ok(), fits, "{:?}", r);
+                                if fits {
+                                    *received += len as u32;
+                                    prop_assert_eq!(r.unwrap().received_bytes, *received);
+                                }
+                            }
+                        }
+                    }
+                    Step::End => {
+                        let r = asm.end();
+                        match expected.take() {
+                            None => prop_assert_eq!(r, Err(UploadError::NotStarted)),
+                            Some((total, crc, received)) => {
+                                if received != total {
+                                    prop_assert!(matches!(r, Err(UploadError::Incomplete { .. })), "{:?}", r);
+                                } else if let Ok(loaded) = r {
+                                    prop_assert_eq!(loaded.crc32, crc);
+                                    let (_, bytes) = asm.model().unwrap();
+                                    prop_assert_eq!(crc32(bytes), crc);
+                                    prop_assert_eq!(bytes.len(), total as usize);
+                                } else {
+                                    prop_assert!(matches!(r, Err(UploadError::CrcMismatch { .. })), "{:?}", r);
+                                    prop_assert!(asm.model().is_none());
+                                }
+                            }
+                        }
+                    }
+                }
+            }
+        }
+    }
+}
