@@ -14,4 +14,5 @@
 extern crate std;
 
 pub mod engine;
+pub mod nn;
 pub mod rng;

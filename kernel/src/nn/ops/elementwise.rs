@@ -1,0 +1,225 @@
+//! Element-wise ops: unary functions and broadcast binary functions.
+
+use super::{OpSizeError, ensure, mul};
+use crate::nn::format::{BinaryFn, RANK, UnaryFn};
+
+/// `ln(1 + eˣ)` without overflow for large `x`.
+#[inline]
+pub fn softplus(x: f32) -> f32 {
+    if x > 20.0 { x } else { libm::log1pf(libm::expf(x)) }
+}
+
+/// `x·tanh(ln(1 + eˣ))`, computed with one exponential:
+/// with `n = eˣ(eˣ + 2)`, `tanh(softplus(x)) = n / (n + 2)`.
+#[inline]
+pub fn mish(x: f32) -> f32 {
+    if x > 20.0 {
+        x
+    } else {
+        let e = libm::expf(x);
+        let n = e * (e + 2.0);
+        x * n / (n + 2.0)
+    }
+}
+
+/// `1 / (1 + e⁻ˣ)`.
+#[inline]
+pub fn sigmoid(x: f32) -> f32 {
+    if x >= 0.0 {
+        1.0 / (1.0 + libm::expf(-x))
+    } else {
+        let e = libm::expf(x);
+        e / (1.0 + e)
+    }
+}
+
+/// Apply one unary function.
+#[inline]
+pub fn apply_unary(f: UnaryFn, x: f32) -> f32 {
+    match f {
+        UnaryFn::Mish => mish(x),
+        UnaryFn::Softplus => softplus(x),
+        UnaryFn::Tanh => libm::tanhf(x),
+        UnaryFn::Sigmoid => sigmoid(x),
+        UnaryFn::Sin => libm::sinf(x),
+        UnaryFn::Cos => libm::cosf(x),
+        UnaryFn::Exp => libm::expf(x),
+        UnaryFn::Relu => x.max(0.0),
+        UnaryFn::Neg => -x,
+        UnaryFn::Sqrt => libm::sqrtf(x),
+        UnaryFn::Reciprocal => 1.0 / x,
+        UnaryFn::Abs => libm::fabsf(x),
+        UnaryFn::Log => libm::logf(x),
+    }
+}
+
+/// `y = f(x)` element-wise; `x` and `y` have the same length.
+pub fn unary(f: UnaryFn, x: &[f32], y: &mut [f32]) -> Result<(), OpSizeError> {
+    ensure(x.len() == y.len())?;
+    match f {
+        // The common activations get their own loops so each is a tight loop.
+        UnaryFn::Mish => y.iter_mut().zip(x).for_each(|(o, v)| *o = mish(*v)),
+        UnaryFn::Tanh => y.iter_mut().zip(x).for_each(|(o, v)| *o = libm::tanhf(*v)),
+        _ => y.iter_mut().zip(x).for_each(|(o, v)| *o = apply_unary(f, *v)),
+    }
+    Ok(())
+}
+
+/// Apply one binary function.
+#[inline]
+pub fn apply_binary(f: BinaryFn, a: f32, b: f32) -> f32 {
+    match f {
+        BinaryFn::Add => a + b,
+        BinaryFn::Sub => a - b,
+        BinaryFn::Mul => a * b,
+        BinaryFn::Div => a / b,
+        BinaryFn::Max => a.max(b),
+        BinaryFn::Min => a.min(b),
+        BinaryFn::Pow => libm::powf(a, b),
+    }
+}
+
+/// Highest offset (inclusive) a strided loop over `dims` reads, or `None` when `dims` is empty.
+pub fn max_offset(dims: &[u32; RANK], strides: &[u32; RANK]) -> Result<Option<usize>, OpSizeError> {
+    let mut off = 0usize;
+    for (d, s) in dims.iter().zip(strides) {
+        if *d == 0 {
+            return Ok(None);
+        }
+        off = off.checked_add(mul(*d as usize - 1, *s as usize)?).ok_or(OpSizeError)?;
+    }
+    Ok(Some(off))
+}
+
+#[inline]
+fn inner_loop(f: BinaryFn, a: &[f32], b: &[f32], y: &mut [f32], sa: usize, sb: usize) {
+    macro_rules! lanes {
+        ($op:expr) => {{
+            let op = $op;
+            match (sa, sb) {
+                (1, 1) => y.iter_mut().zip(a).zip(b).for_each(|((o, p), q)| *o = op(*p, *q)),
+                (1, 0) => {
+                    let q = b[0];
+                    y.iter_mut().zip(a).for_each(|(o, p)| *o = op(*p, q))
+                }
+                (0, 1) => {
+                    let p = a[0];
+                    y.iter_mut().zip(b).for_each(|(o, q)| *o = op(p, *q))
+                }
+                _ => y.iter_mut().enumerate().for_each(|(i, o)| *o = op(a[i * sa], b[i * sb])),
+            }
+        }};
+    }
+    match f {
+        BinaryFn::Add => lanes!(|p: f32, q: f32| p + q),
+        BinaryFn::Mul => lanes!(|p: f32, q: f32| p * q),
+        BinaryFn::Sub => lanes!(|p: f32, q: f32| p - q),
+        _ => lanes!(|p: f32, q: f32| apply_binary(f, p, q)),
+    }
+}
+
+/// One sample of `y = f(a, b)` with broadcasting: `y` is `dims` row-major, `a` and `b` are
+/// read with `sa`/`sb` (0 on broadcast axes).
+pub fn binary(
+    f: BinaryFn,
+    a: &[f32],
+    b: &[f32],
+    y: &mut [f32],
+    dims: &[u32; RANK],
+    sa: &[u32; RANK],
+    sb: &[u32; RANK],
+) -> Result<(), OpSizeError> {
+    let total = dims.iter().try_fold(1usize, |acc, d| mul(acc, *d as usize))?;
+    ensure(y.len() == total)?;
+    if total == 0 {
+        return Ok(());
+    }
+    ensure(max_offset(dims, sa)?.is_some_and(|m| m < a.len()))?;
+    ensure(max_offset(dims, sb)?.is_some_and(|m| m < b.len()))?;
+    let [d0, d1, d2, d3] = dims.map(|d| d as usize);
+    let (sa3, sb3) = (sa[3] as usize, sb[3] as usize);
+    let mut out = 0;
+    for i0 in 0..d0 {
+        for i1 in 0..d1 {
+            for i2 in 0..d2 {
+                let oa = i0 * sa[0] as usize + i1 * sa[1] as usize + i2 * sa[2] as usize;
+                let ob = i0 * sb[0] as usize + i1 * sb[1] as usize + i2 * sb[2] as usize;
+                let ya = &a[oa..oa + (d3 - 1) * sa3 + 1];
+                let yb = &b[ob..ob + (d3 - 1) * sb3 + 1];
+                inner_loop(f, ya, yb, &mut y[out..out + d3], sa3, sb3);
+                out += d3;
+            }
+        }
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::nn::ops::testutil::{assert_close, rand_vec};
+    use std::vec;
+    use std::vec::Vec;
+
+    #[test]
+    fn activations_match_reference_formulas() {
+        for i in -400..400 {
+            let x = i as f32 * 0.07;
+            let sp = (1.0f64 + (x as f64).exp()).ln();
+            let want = x as f64 * sp.tanh();
+            assert!((mish(x) as f64 - want).abs() <= 1e-6 * (1.0 + want.abs()), "mish({x})");
+            assert!((softplus(x) as f64 - sp).abs() <= 1e-6 * (1.0 + sp), "softplus({x})");
+            let sg = 1.0 / (1.0 + (-(x as f64)).exp());
+            assert!((sigmoid(x) as f64 - sg).abs() <= 1e-7, "sigmoid({x})");
+        }
+        assert_eq!(mish(100.0), 100.0);
+        assert!(mish(-100.0).abs() < 1e-30);
+    }
+
+    #[test]
+    fn unary_applies_each_function() {
+        let x = rand_vec(33, 1);
+        let mut y = vec![0.0; 33];
+        unary(UnaryFn::Tanh, &x, &mut y).unwrap();
+        let want: Vec<f32> = x.iter().map(|v| v.tanh()).collect();
+        assert_close(&y, &want, 1e-6);
+        assert!(unary(UnaryFn::Exp, &x, &mut [0.0; 3]).is_err());
+    }
+
+    fn naive_binary(a: &[f32], b: &[f32], dims: [usize; 4], sa: [usize; 4], sb: [usize; 4]) -> Vec<f32> {
+        let mut y = vec![];
+        for i0 in 0..dims[0] {
+            for i1 in 0..dims[1] {
+                for i2 in 0..dims[2] {
+                    for i3 in 0..dims[3] {
+                        let ia = i0 * sa[0] + i1 * sa[1] + i2 * sa[2] + i3 * sa[3];
+                        let ib = i0 * sb[0] + i1 * sb[1] + i2 * sb[2] + i3 * sb[3];
+                        y.push(a[ia] - b[ib]);
+                    }
+                }
+            }
+        }
+        y
+    }
+
+    #[test]
+    fn binary_broadcasts_like_numpy() {
+        // [2,3,5] - [3,1] ; [1,3,5] - [2,3,1] ; same shapes.
+        let cases: [([usize; 4], [usize; 4], [usize; 4], usize, usize); 3] = [
+            ([1, 2, 3, 5], [0, 15, 5, 1], [0, 0, 1, 0], 30, 3),
+            ([1, 2, 3, 5], [0, 0, 5, 1], [0, 3, 1, 0], 15, 6),
+            ([1, 1, 4, 7], [0, 0, 7, 1], [0, 0, 7, 1], 28, 28),
+        ];
+        for (i, (dims, sa, sb, na, nb)) in cases.into_iter().enumerate() {
+            let a = rand_vec(na, i as u64);
+            let b = rand_vec(nb, 9 + i as u64);
+            let want = naive_binary(&a, &b, dims, sa, sb);
+            let mut y = vec![0.0; want.len()];
+            let u = |v: [usize; 4]| v.map(|d| d as u32);
+            binary(BinaryFn::Sub, &a, &b, &mut y, &u(dims), &u(sa), &u(sb)).unwrap();
+            assert_eq!(y, want);
+        }
+        let mut y = vec![0.0; 30];
+        assert!(binary(BinaryFn::Add, &[0.0; 29], &[0.0; 3], &mut y, &[1, 2, 3, 5], &[0, 15, 5, 1], &[0, 0, 1, 0]).is_err());
+    }
+}
