@@ -20,7 +20,12 @@ impl<'b, 'm> KernelEngine<'b, 'm> {
     pub fn new(blob: &'b [u8], mem: &'m mut [f32]) -> Result<Self, NnError> {
         let info = parse(blob)?;
         let max_batch = install(&info, blob, mem)?;
-        Ok(Self { blob, mem, info, max_batch })
+        Ok(Self {
+            blob,
+            mem,
+            info,
+            max_batch,
+        })
     }
 
     /// The decoded model facts.
@@ -29,15 +34,25 @@ impl<'b, 'm> KernelEngine<'b, 'm> {
     }
 
     fn weights(&self, w: super::format::W) -> &[f32] {
-        self.mem.get(w.off as usize..(w.off + w.len) as usize).unwrap_or(&[])
+        self.mem
+            .get(w.off as usize..(w.off + w.len) as usize)
+            .unwrap_or(&[])
     }
 
     fn norm(&self) -> Normalization<'_> {
-        Normalization { mean: self.weights(self.info.norm_mean), std: self.weights(self.info.norm_std) }
+        Normalization {
+            mean: self.weights(self.info.norm_mean),
+            std: self.weights(self.info.norm_std),
+        }
     }
 
     /// Run on contract inputs in contract order.
-    pub fn run(&mut self, batch: usize, inputs: &[&[f32]], output: &mut [f32]) -> Result<(), NnError> {
+    pub fn run(
+        &mut self,
+        batch: usize,
+        inputs: &[&[f32]],
+        output: &mut [f32],
+    ) -> Result<(), NnError> {
         run(&self.info, self.blob, self.mem, batch, inputs, output)
     }
 }
@@ -88,7 +103,13 @@ impl DiscriminatorEngine for KernelEngine<'_, '_> {
         self.max_batch
     }
 
-    fn p_real(&mut self, batch: usize, x: &[f32], context: &[f32], p_real: &mut [f32]) -> Result<(), NnError> {
+    fn p_real(
+        &mut self,
+        batch: usize,
+        x: &[f32],
+        context: &[f32],
+        p_real: &mut [f32],
+    ) -> Result<(), NnError> {
         if self.info.role != 1 {
             return Err(NnError::WrongRole);
         }

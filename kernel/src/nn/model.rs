@@ -59,8 +59,10 @@ pub fn decode(blob: &[u8]) -> Result<Body<'_>, NnError> {
     if stored != computed {
         return Err(NnError::ChecksumMismatch { stored, computed });
     }
-    let (_, body_bytes) = postcard::take_from_bytes::<Header>(payload).map_err(|_| NnError::Decode)?;
-    let (body, rest) = postcard::take_from_bytes::<Body<'_>>(body_bytes).map_err(|_| NnError::Decode)?;
+    let (_, body_bytes) =
+        postcard::take_from_bytes::<Header>(payload).map_err(|_| NnError::Decode)?;
+    let (body, rest) =
+        postcard::take_from_bytes::<Body<'_>>(body_bytes).map_err(|_| NnError::Decode)?;
     if !rest.is_empty() {
         return Err(NnError::Decode);
     }
@@ -73,15 +75,20 @@ fn offset_in(blob: &[u8], part: &[u8]) -> (usize, usize) {
 }
 
 fn buf_ok(b: &Buf, arena: usize) -> bool {
-    (b.off as usize).checked_add(b.len as usize).is_some_and(|e| e <= arena)
+    (b.off as usize)
+        .checked_add(b.len as usize)
+        .is_some_and(|e| e <= arena)
 }
 
 fn w_ok(w: &W, n: usize) -> bool {
-    (w.off as usize).checked_add(w.len as usize).is_some_and(|e| e <= n)
+    (w.off as usize)
+        .checked_add(w.len as usize)
+        .is_some_and(|e| e <= n)
 }
 
 fn disjoint(a: &Buf, b: &Buf) -> bool {
-    a.off as usize + a.len as usize <= b.off as usize || b.off as usize + b.len as usize <= a.off as usize
+    a.off as usize + a.len as usize <= b.off as usize
+        || b.off as usize + b.len as usize <= a.off as usize
 }
 
 fn operand_ok(o: &Operand, arena: usize, n: usize, y: &Buf) -> bool {
@@ -103,12 +110,16 @@ pub fn op_temp_len(op: &Op) -> Result<usize, OpSizeError> {
 fn op_refs_ok(op: &Op, arena: usize, n: usize) -> bool {
     let io = |x: &Buf, y: &Buf| buf_ok(x, arena) && buf_ok(y, arena) && disjoint(x, y);
     match op {
-        Op::Conv1d { x, y, w, b, .. } | Op::ConvTranspose1d { x, y, w, b, .. } | Op::Gemm { a: x, y, w, b, .. } => {
-            io(x, y) && w_ok(w, n) && w_ok(b, n)
-        }
-        Op::InstanceNorm { x, y, scale, bias, .. } => io(x, y) && w_ok(scale, n) && w_ok(bias, n),
+        Op::Conv1d { x, y, w, b, .. }
+        | Op::ConvTranspose1d { x, y, w, b, .. }
+        | Op::Gemm { a: x, y, w, b, .. } => io(x, y) && w_ok(w, n) && w_ok(b, n),
+        Op::InstanceNorm {
+            x, y, scale, bias, ..
+        } => io(x, y) && w_ok(scale, n) && w_ok(bias, n),
         Op::Unary { x, y, .. } | Op::ReduceMean { x, y, .. } => io(x, y),
-        Op::Binary { a, b, y, .. } => buf_ok(y, arena) && operand_ok(a, arena, n, y) && operand_ok(b, arena, n, y),
+        Op::Binary { a, b, y, .. } => {
+            buf_ok(y, arena) && operand_ok(a, arena, n, y) && operand_ok(b, arena, n, y)
+        }
         Op::Copy { x, y, .. } => buf_ok(y, arena) && operand_ok(x, arena, n, y),
         Op::Fill { y, .. } => buf_ok(y, arena),
     }
@@ -133,9 +144,17 @@ pub fn parse(blob: &[u8]) -> Result<ModelInfo, NnError> {
         return Err(NnError::BadLayout);
     }
     let arena = body.arena_per_sample as usize;
-    let d = (m.state_dim as usize).checked_add(m.action_dim as usize).ok_or(NnError::BadLayout)?;
-    let td = (m.horizon as usize).checked_mul(d).ok_or(NnError::BadLayout)?;
-    let in_lens: &[usize] = if m.role == 0 { &[td, 1, m.fingers as usize, 1] } else { &[td, m.fingers as usize] };
+    let d = (m.state_dim as usize)
+        .checked_add(m.action_dim as usize)
+        .ok_or(NnError::BadLayout)?;
+    let td = (m.horizon as usize)
+        .checked_mul(d)
+        .ok_or(NnError::BadLayout)?;
+    let in_lens: &[usize] = if m.role == 0 {
+        &[td, 1, m.fingers as usize, 1]
+    } else {
+        &[td, m.fingers as usize]
+    };
     for (b, want) in body.inputs.iter().zip(in_lens) {
         if !buf_ok(b, arena) || b.len as usize != *want {
             return Err(NnError::BadLayout);
@@ -219,9 +238,14 @@ impl ModelInfo {
 pub fn install(info: &ModelInfo, blob: &[u8], mem: &mut [f32]) -> Result<usize, NnError> {
     let needed = info.memory_len(1).ok_or(NnError::BadLayout)?;
     if mem.len() < needed {
-        return Err(NnError::MemoryTooSmall { needed, given: mem.len() });
+        return Err(NnError::MemoryTooSmall {
+            needed,
+            given: mem.len(),
+        });
     }
-    let bytes = blob.get(info.weights_range.0..info.weights_range.1).ok_or(NnError::BadLayout)?;
+    let bytes = blob
+        .get(info.weights_range.0..info.weights_range.1)
+        .ok_or(NnError::BadLayout)?;
     let dst = mem.get_mut(..info.n_weights).ok_or(NnError::BadLayout)?;
     if bytes.len() != dst.len() * 4 {
         return Err(NnError::BadLayout);
@@ -242,7 +266,11 @@ fn region(b: &Buf, mb: usize, batch: usize) -> (usize, usize) {
 }
 
 /// Split the arena into a read-only source and the destination region.
-fn split<'a>(arena: &'a mut [f32], x: (usize, usize), y: (usize, usize)) -> Option<(&'a [f32], &'a mut [f32])> {
+fn split<'a>(
+    arena: &'a mut [f32],
+    x: (usize, usize),
+    y: (usize, usize),
+) -> Option<(&'a [f32], &'a mut [f32])> {
     let (left, rest) = arena.split_at_mut_checked(y.0)?;
     let (mid, right) = rest.split_at_mut_checked(y.1 - y.0)?;
     let src = if x.1 <= y.0 {
@@ -297,7 +325,14 @@ fn sample<'a>(s: &'a [f32], o: &Operand, i: usize) -> Option<&'a [f32]> {
     }
 }
 
-fn exec(op: &Op, weights: &[f32], temp: &mut [f32], arena: &mut [f32], mb: usize, batch: usize) -> Option<()> {
+fn exec(
+    op: &Op,
+    weights: &[f32],
+    temp: &mut [f32],
+    arena: &mut [f32],
+    mb: usize,
+    batch: usize,
+) -> Option<()> {
     let r = |b: &Buf| region(b, mb, batch);
     match op {
         Op::Conv1d { x, y, w, b, g } | Op::ConvTranspose1d { x, y, w, b, g } => {
@@ -315,7 +350,15 @@ fn exec(op: &Op, weights: &[f32], temp: &mut [f32], arena: &mut [f32], mb: usize
                 res.ok()?;
             }
         }
-        Op::InstanceNorm { x, y, len, eps, scale, bias, .. } => {
+        Op::InstanceNorm {
+            x,
+            y,
+            len,
+            eps,
+            scale,
+            bias,
+            ..
+        } => {
             let (src, dst) = split(arena, r(x), r(y))?;
             let (sc, bi) = (wslice(weights, scale)?, wslice(weights, bias)?);
             let l = x.len as usize;
@@ -329,38 +372,89 @@ fn exec(op: &Op, weights: &[f32], temp: &mut [f32], arena: &mut [f32], mb: usize
             let (src, dst) = split(arena, r(x), r(y))?;
             ops::elementwise::unary(*f, src, dst).ok()?;
         }
-        Op::Binary { a, b, y, f, dims, sa, sb } => {
+        Op::Binary {
+            a,
+            b,
+            y,
+            f,
+            dims,
+            sa,
+            sb,
+        } => {
             let ([sa_, sb_], dst) = split2(arena, weights, *a, *b, (mb, batch), r(y))?;
             let yl = y.len as usize;
             for i in 0..batch {
                 let ys = dst.get_mut(i * yl..(i + 1) * yl)?;
-                ops::elementwise::binary(*f, sample(sa_, a, i)?, sample(sb_, b, i)?, ys, dims, sa, sb).ok()?;
+                ops::elementwise::binary(
+                    *f,
+                    sample(sa_, a, i)?,
+                    sample(sb_, b, i)?,
+                    ys,
+                    dims,
+                    sa,
+                    sb,
+                )
+                .ok()?;
             }
         }
-        Op::Gemm { a, y, w, b, k, n, .. } => {
+        Op::Gemm {
+            a, y, w, b, k, n, ..
+        } => {
             let (src, dst) = split(arena, r(a), r(y))?;
-            ops::gemm::gemm(src, wslice(weights, w)?, wslice(weights, b)?, dst, *k as usize, *n as usize).ok()?;
+            ops::gemm::gemm(
+                src,
+                wslice(weights, w)?,
+                wslice(weights, b)?,
+                dst,
+                *k as usize,
+                *n as usize,
+            )
+            .ok()?;
         }
-        Op::Copy { x, y, dims, x_off, xs, y_off, ys } => {
+        Op::Copy {
+            x,
+            y,
+            dims,
+            x_off,
+            xs,
+            y_off,
+            ys,
+        } => {
             let dummy = Operand::Weight(W { off: 0, len: 0 });
             let ([src, _], dst) = split2(arena, weights, *x, dummy, (mb, batch), r(y))?;
             let yl = y.len as usize;
             for i in 0..batch {
                 let yd = dst.get_mut(i * yl..(i + 1) * yl)?;
-                ops::layout::strided_copy(sample(src, x, i)?, yd, dims, *x_off as usize, xs, *y_off as usize, ys).ok()?;
+                ops::layout::strided_copy(
+                    sample(src, x, i)?,
+                    yd,
+                    dims,
+                    *x_off as usize,
+                    xs,
+                    *y_off as usize,
+                    ys,
+                )
+                .ok()?;
             }
         }
         Op::Fill { y, value } => {
             let (s, e) = r(y);
             arena.get_mut(s..e)?.fill(*value);
         }
-        Op::ReduceMean { x, y, outer, len, inner } => {
+        Op::ReduceMean {
+            x,
+            y,
+            outer,
+            len,
+            inner,
+        } => {
             let (src, dst) = split(arena, r(x), r(y))?;
             let (xl, yl) = (x.len as usize, y.len as usize);
             for i in 0..batch {
                 let xs = src.get(i * xl..(i + 1) * xl)?;
                 let ys = dst.get_mut(i * yl..(i + 1) * yl)?;
-                ops::norm::reduce_mean(xs, ys, *outer as usize, *len as usize, *inner as usize).ok()?;
+                ops::norm::reduce_mean(xs, ys, *outer as usize, *len as usize, *inner as usize)
+                    .ok()?;
             }
         }
     }
@@ -383,7 +477,11 @@ pub fn run(
         return Err(NnError::BadBatch { batch, max: mb });
     }
     if inputs.len() != info.n_inputs {
-        return Err(NnError::BadLength { which: MAX_INPUTS as u8, given: inputs.len(), expected: info.n_inputs });
+        return Err(NnError::BadLength {
+            which: MAX_INPUTS as u8,
+            given: inputs.len(),
+            expected: info.n_inputs,
+        });
     }
     let (weights, rest) = mem.split_at_mut(info.n_weights);
     let (temp, arena) = rest.split_at_mut(info.temp_len);
@@ -391,15 +489,28 @@ pub fn run(
     for (i, (data, buf)) in inputs.iter().zip(&info.inputs).enumerate() {
         let (s, e) = region(buf, mb, batch);
         if data.len() != e - s {
-            return Err(NnError::BadLength { which: i as u8, given: data.len(), expected: e - s });
+            return Err(NnError::BadLength {
+                which: i as u8,
+                given: data.len(),
+                expected: e - s,
+            });
         }
-        arena.get_mut(s..e).ok_or(NnError::BadLayout)?.copy_from_slice(data);
+        arena
+            .get_mut(s..e)
+            .ok_or(NnError::BadLayout)?
+            .copy_from_slice(data);
     }
     let (os, oe) = region(&info.output, mb, batch);
     if output.len() != oe - os {
-        return Err(NnError::BadLength { which: MAX_INPUTS as u8, given: output.len(), expected: oe - os });
+        return Err(NnError::BadLength {
+            which: MAX_INPUTS as u8,
+            given: output.len(),
+            expected: oe - os,
+        });
     }
-    let mut ops_bytes = blob.get(info.ops_range.0..info.ops_range.1).ok_or(NnError::BadLayout)?;
+    let mut ops_bytes = blob
+        .get(info.ops_range.0..info.ops_range.1)
+        .ok_or(NnError::BadLayout)?;
     let mut index = 0u32;
     while !ops_bytes.is_empty() {
         let (op, r) = postcard::take_from_bytes::<Op>(ops_bytes).map_err(|_| NnError::Decode)?;

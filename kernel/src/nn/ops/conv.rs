@@ -237,8 +237,17 @@ mod tests {
 
     #[allow(clippy::too_many_arguments)]
     fn naive_conv(
-        x: &[f32], w: &[f32], b: &[f32], cin: usize, cout: usize, lin: usize, k: usize,
-        s: usize, d: usize, pb: usize, pe: usize,
+        x: &[f32],
+        w: &[f32],
+        b: &[f32],
+        cin: usize,
+        cout: usize,
+        lin: usize,
+        k: usize,
+        s: usize,
+        d: usize,
+        pb: usize,
+        pe: usize,
     ) -> (Vec<f32>, usize) {
         let lout = (lin + pb + pe - d * (k - 1) - 1) / s + 1;
         let mut y = vec![0.0; cout * lout];
@@ -261,8 +270,17 @@ mod tests {
 
     #[allow(clippy::too_many_arguments)]
     fn naive_convt(
-        x: &[f32], w: &[f32], b: &[f32], cin: usize, cout: usize, lin: usize, k: usize,
-        s: usize, d: usize, pb: usize, pe: usize,
+        x: &[f32],
+        w: &[f32],
+        b: &[f32],
+        cin: usize,
+        cout: usize,
+        lin: usize,
+        k: usize,
+        s: usize,
+        d: usize,
+        pb: usize,
+        pe: usize,
     ) -> (Vec<f32>, usize) {
         let lout = (lin - 1) * s + d * (k - 1) + 1 - pb - pe;
         let mut y = vec![0.0; cout * lout];
@@ -277,7 +295,8 @@ mod tests {
                     for kk in 0..k {
                         let t = (i * s + kk * d) as isize - pb as isize;
                         if t >= 0 && (t as usize) < lout {
-                            y[co * lout + t as usize] += x[ci * lin + i] * w[(ci * cout + co) * k + kk];
+                            y[co * lout + t as usize] +=
+                                x[ci * lin + i] * w[(ci * cout + co) * k + kk];
                         }
                     }
                 }
@@ -305,8 +324,15 @@ mod tests {
             let (want, lout) = naive_conv(&x, &w, &b, cin, cout, lin, k, s, d, pb, pe);
             let coutp = padded_channels(cout);
             let g = ConvGeom {
-                cin: cin as u32, cout: cout as u32, cout_padded: coutp as u32, lin: lin as u32,
-                lout: lout as u32, k: k as u32, stride: s as u32, dilation: d as u32, pad_begin: pb as u32,
+                cin: cin as u32,
+                cout: cout as u32,
+                cout_padded: coutp as u32,
+                lin: lin as u32,
+                lout: lout as u32,
+                k: k as u32,
+                stride: s as u32,
+                dilation: d as u32,
+                pad_begin: pb as u32,
             };
             let mut wp = vec![0.0; cin * k * coutp];
             pack_conv_kernel(&w, cout, cin, k, coutp, &mut wp).unwrap();
@@ -321,8 +347,13 @@ mod tests {
 
     #[test]
     fn conv_transpose1d_matches_naive() {
-        for (seed, &(cin, cout, lin, k, s, d, pb, pe)) in
-            [(16, 16, 4, 4, 2, 1, 1, 1), (32, 8, 3, 4, 2, 1, 1, 1), (3, 5, 6, 3, 1, 2, 0, 1)].iter().enumerate()
+        for (seed, &(cin, cout, lin, k, s, d, pb, pe)) in [
+            (16, 16, 4, 4, 2, 1, 1, 1),
+            (32, 8, 3, 4, 2, 1, 1, 1),
+            (3, 5, 6, 3, 1, 2, 0, 1),
+        ]
+        .iter()
+        .enumerate()
         {
             let x = rand_vec(cin * lin, seed as u64);
             let w = rand_vec(cout * cin * k, 10 + seed as u64);
@@ -330,8 +361,15 @@ mod tests {
             let (want, lout) = naive_convt(&x, &w, &b, cin, cout, lin, k, s, d, pb, pe);
             let coutp = padded_channels(cout);
             let g = ConvGeom {
-                cin: cin as u32, cout: cout as u32, cout_padded: coutp as u32, lin: lin as u32,
-                lout: lout as u32, k: k as u32, stride: s as u32, dilation: d as u32, pad_begin: pb as u32,
+                cin: cin as u32,
+                cout: cout as u32,
+                cout_padded: coutp as u32,
+                lin: lin as u32,
+                lout: lout as u32,
+                k: k as u32,
+                stride: s as u32,
+                dilation: d as u32,
+                pad_begin: pb as u32,
             };
             let mut wp = vec![0.0; cin * k * coutp];
             pack_conv_transpose_kernel(&w, cin, cout, k, coutp, &mut wp).unwrap();
@@ -346,13 +384,27 @@ mod tests {
 
     #[test]
     fn wrong_sizes_are_errors() {
-        let g = ConvGeom { cin: 2, cout: 3, cout_padded: 8, lin: 4, lout: 4, k: 3, stride: 1, dilation: 1, pad_begin: 1 };
+        let g = ConvGeom {
+            cin: 2,
+            cout: 3,
+            cout_padded: 8,
+            lin: 4,
+            lout: 4,
+            k: 3,
+            stride: 1,
+            dilation: 1,
+            pad_begin: 1,
+        };
         let mut y = vec![0.0; 12];
         let mut temp = vec![0.0; 64];
         assert!(conv1d(&g, &[0.0; 7], &mut y, &[0.0; 48], &[0.0; 8], &mut temp).is_err());
         assert!(conv1d(&g, &[0.0; 8], &mut y, &[0.0; 47], &[0.0; 8], &mut temp).is_err());
         assert!(conv1d(&g, &[0.0; 8], &mut y, &[0.0; 48], &[0.0; 8], &mut [0.0; 3]).is_err());
-        let huge = ConvGeom { lin: u32::MAX, lout: u32::MAX, ..g };
+        let huge = ConvGeom {
+            lin: u32::MAX,
+            lout: u32::MAX,
+            ..g
+        };
         assert!(conv1d(&huge, &[0.0; 8], &mut y, &[0.0; 48], &[0.0; 8], &mut temp).is_err());
     }
 }

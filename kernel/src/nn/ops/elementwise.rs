@@ -6,7 +6,11 @@ use crate::nn::format::{BinaryFn, RANK, UnaryFn};
 /// `ln(1 + eˣ)` without overflow for large `x`.
 #[inline]
 pub fn softplus(x: f32) -> f32 {
-    if x > 20.0 { x } else { libm::log1pf(libm::expf(x)) }
+    if x > 20.0 {
+        x
+    } else {
+        libm::log1pf(libm::expf(x))
+    }
 }
 
 /// `x·tanh(ln(1 + eˣ))`, computed with one exponential:
@@ -60,7 +64,10 @@ pub fn unary(f: UnaryFn, x: &[f32], y: &mut [f32]) -> Result<(), OpSizeError> {
         // The common activations get their own loops so each is a tight loop.
         UnaryFn::Mish => y.iter_mut().zip(x).for_each(|(o, v)| *o = mish(*v)),
         UnaryFn::Tanh => y.iter_mut().zip(x).for_each(|(o, v)| *o = libm::tanhf(*v)),
-        _ => y.iter_mut().zip(x).for_each(|(o, v)| *o = apply_unary(f, *v)),
+        _ => y
+            .iter_mut()
+            .zip(x)
+            .for_each(|(o, v)| *o = apply_unary(f, *v)),
     }
     Ok(())
 }
@@ -86,7 +93,9 @@ pub fn max_offset(dims: &[u32; RANK], strides: &[u32; RANK]) -> Result<Option<us
         if *d == 0 {
             return Ok(None);
         }
-        off = off.checked_add(mul(*d as usize - 1, *s as usize)?).ok_or(OpSizeError)?;
+        off = off
+            .checked_add(mul(*d as usize - 1, *s as usize)?)
+            .ok_or(OpSizeError)?;
     }
     Ok(Some(off))
 }
@@ -97,7 +106,11 @@ fn inner_loop(f: BinaryFn, a: &[f32], b: &[f32], y: &mut [f32], sa: usize, sb: u
         ($op:expr) => {{
             let op = $op;
             match (sa, sb) {
-                (1, 1) => y.iter_mut().zip(a).zip(b).for_each(|((o, p), q)| *o = op(*p, *q)),
+                (1, 1) => y
+                    .iter_mut()
+                    .zip(a)
+                    .zip(b)
+                    .for_each(|((o, p), q)| *o = op(*p, *q)),
                 (1, 0) => {
                     let q = b[0];
                     y.iter_mut().zip(a).for_each(|(o, p)| *o = op(*p, q))
@@ -106,7 +119,10 @@ fn inner_loop(f: BinaryFn, a: &[f32], b: &[f32], y: &mut [f32], sa: usize, sb: u
                     let p = a[0];
                     y.iter_mut().zip(b).for_each(|(o, q)| *o = op(p, *q))
                 }
-                _ => y.iter_mut().enumerate().for_each(|(i, o)| *o = op(a[i * sa], b[i * sb])),
+                _ => y
+                    .iter_mut()
+                    .enumerate()
+                    .for_each(|(i, o)| *o = op(a[i * sa], b[i * sb])),
             }
         }};
     }
@@ -129,7 +145,9 @@ pub fn binary(
     sa: &[u32; RANK],
     sb: &[u32; RANK],
 ) -> Result<(), OpSizeError> {
-    let total = dims.iter().try_fold(1usize, |acc, d| mul(acc, *d as usize))?;
+    let total = dims
+        .iter()
+        .try_fold(1usize, |acc, d| mul(acc, *d as usize))?;
     ensure(y.len() == total)?;
     if total == 0 {
         return Ok(());
@@ -167,8 +185,14 @@ mod tests {
             let x = i as f32 * 0.07;
             let sp = (1.0f64 + (x as f64).exp()).ln();
             let want = x as f64 * sp.tanh();
-            assert!((mish(x) as f64 - want).abs() <= 1e-6 * (1.0 + want.abs()), "mish({x})");
-            assert!((softplus(x) as f64 - sp).abs() <= 1e-6 * (1.0 + sp), "softplus({x})");
+            assert!(
+                (mish(x) as f64 - want).abs() <= 1e-6 * (1.0 + want.abs()),
+                "mish({x})"
+            );
+            assert!(
+                (softplus(x) as f64 - sp).abs() <= 1e-6 * (1.0 + sp),
+                "softplus({x})"
+            );
             let sg = 1.0 / (1.0 + (-(x as f64)).exp());
             assert!((sigmoid(x) as f64 - sg).abs() <= 1e-7, "sigmoid({x})");
         }
@@ -186,7 +210,13 @@ mod tests {
         assert!(unary(UnaryFn::Exp, &x, &mut [0.0; 3]).is_err());
     }
 
-    fn naive_binary(a: &[f32], b: &[f32], dims: [usize; 4], sa: [usize; 4], sb: [usize; 4]) -> Vec<f32> {
+    fn naive_binary(
+        a: &[f32],
+        b: &[f32],
+        dims: [usize; 4],
+        sa: [usize; 4],
+        sb: [usize; 4],
+    ) -> Vec<f32> {
         let mut y = vec![];
         for i0 in 0..dims[0] {
             for i1 in 0..dims[1] {
@@ -220,6 +250,17 @@ mod tests {
             assert_eq!(y, want);
         }
         let mut y = vec![0.0; 30];
-        assert!(binary(BinaryFn::Add, &[0.0; 29], &[0.0; 3], &mut y, &[1, 2, 3, 5], &[0, 15, 5, 1], &[0, 0, 1, 0]).is_err());
+        assert!(
+            binary(
+                BinaryFn::Add,
+                &[0.0; 29],
+                &[0.0; 3],
+                &mut y,
+                &[1, 2, 3, 5],
+                &[0, 15, 5, 1],
+                &[0, 0, 1, 0]
+            )
+            .is_err()
+        );
     }
 }

@@ -3,7 +3,14 @@
 use super::{OpSizeError, ensure, mul};
 
 /// `y[r, :] = b + Σₖ a[r, k]·w[k, :]` for every row `r` of `a` (`[rows, k]`).
-pub fn gemm(a: &[f32], w: &[f32], b: &[f32], y: &mut [f32], k: usize, n: usize) -> Result<(), OpSizeError> {
+pub fn gemm(
+    a: &[f32],
+    w: &[f32],
+    b: &[f32],
+    y: &mut [f32],
+    k: usize,
+    n: usize,
+) -> Result<(), OpSizeError> {
     ensure(k > 0 && n > 0)?;
     ensure(a.len() % k == 0)?;
     let rows = a.len() / k;

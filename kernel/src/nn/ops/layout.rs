@@ -4,7 +4,11 @@ use super::{OpSizeError, ensure, mul};
 use crate::nn::format::RANK;
 
 /// Highest and lowest source offsets of a strided walk, or `None` when `dims` is empty.
-fn source_range(dims: &[u32; RANK], off: usize, xs: &[i32; RANK]) -> Result<Option<(usize, usize)>, OpSizeError> {
+fn source_range(
+    dims: &[u32; RANK],
+    off: usize,
+    xs: &[i32; RANK],
+) -> Result<Option<(usize, usize)>, OpSizeError> {
     let (mut lo, mut hi) = (off as i128, off as i128);
     for (d, s) in dims.iter().zip(xs) {
         if *d == 0 {
@@ -73,7 +77,16 @@ mod tests {
         // [3,4] -> transpose [4,3]
         let x: Vec<f32> = (0..12).map(|v| v as f32).collect();
         let mut y = vec![0.0; 12];
-        strided_copy(&x, &mut y, &[1, 1, 4, 3], 0, &[0, 0, 1, 4], 0, &[0, 0, 3, 1]).unwrap();
+        strided_copy(
+            &x,
+            &mut y,
+            &[1, 1, 4, 3],
+            0,
+            &[0, 0, 1, 4],
+            0,
+            &[0, 0, 3, 1],
+        )
+        .unwrap();
         for r in 0..4 {
             for c in 0..3 {
                 assert_eq!(y[r * 3 + c], x[c * 4 + r]);
@@ -81,11 +94,53 @@ mod tests {
         }
         // reverse the last axis of row 1: x[1, 3..=0]
         let mut z = vec![0.0; 4];
-        strided_copy(&x, &mut z, &[1, 1, 1, 4], 7, &[0, 0, 0, -1], 0, &[0, 0, 0, 1]).unwrap();
+        strided_copy(
+            &x,
+            &mut z,
+            &[1, 1, 1, 4],
+            7,
+            &[0, 0, 0, -1],
+            0,
+            &[0, 0, 0, 1],
+        )
+        .unwrap();
         assert_eq!(z, vec![7.0, 6.0, 5.0, 4.0]);
         // out of range source or destination
-        assert!(strided_copy(&x, &mut z, &[1, 1, 1, 4], 9, &[0, 0, 0, 1], 0, &[0, 0, 0, 1]).is_err());
-        assert!(strided_copy(&x, &mut z, &[1, 1, 1, 4], 3, &[0, 0, 0, -1], 1, &[0, 0, 0, 1]).is_err());
-        assert!(strided_copy(&x, &mut z, &[1, 1, 1, 4], 2, &[0, 0, 0, -1], 0, &[0, 0, 0, 1]).is_err());
+        assert!(
+            strided_copy(
+                &x,
+                &mut z,
+                &[1, 1, 1, 4],
+                9,
+                &[0, 0, 0, 1],
+                0,
+                &[0, 0, 0, 1]
+            )
+            .is_err()
+        );
+        assert!(
+            strided_copy(
+                &x,
+                &mut z,
+                &[1, 1, 1, 4],
+                3,
+                &[0, 0, 0, -1],
+                1,
+                &[0, 0, 0, 1]
+            )
+            .is_err()
+        );
+        assert!(
+            strided_copy(
+                &x,
+                &mut z,
+                &[1, 1, 1, 4],
+                2,
+                &[0, 0, 0, -1],
+                0,
+                &[0, 0, 0, 1]
+            )
+            .is_err()
+        );
     }
 }

@@ -72,7 +72,8 @@ mod tests {
             let m = r.iter().map(|v| *v as f64).sum::<f64>() / l as f64;
             let v = r.iter().map(|v| (*v as f64 - m).powi(2)).sum::<f64>() / l as f64;
             for t in 0..l {
-                want[ch * l + t] = (((r[t] as f64 - m) / (v + 1e-5).sqrt()) * scale[ch] as f64 + bias[ch] as f64) as f32;
+                want[ch * l + t] = (((r[t] as f64 - m) / (v + 1e-5).sqrt()) * scale[ch] as f64
+                    + bias[ch] as f64) as f32;
             }
         }
         let mut y = vec![0.0; c * l];

@@ -1,0 +1,149 @@
+//! The kernel engine on the host: a lowered blob run by the no_std interpreter of
+//! `dips-kernel`, with memory grown to the largest batch asked for.
+
+use std::path::Path;
+
+use dips_kernel::engine::{DenoiserEngine, DiscriminatorEngine, ModelDims, Normalization};
+use dips_kernel::nn::model::{ModelInfo, install, parse, run};
+
+use crate::contract::{Contract, Expectation, Role};
+use crate::error::{ModelError, Result};
+use crate::lower::{LoweredModel, lower_file};
+use crate::tract_engine::check_call;
+
+/// A contract-v1 model run by the kernel interpreter.
+#[derive(Debug)]
+pub struct KernelHostEngine {
+    contract: Contract,
+    blob: Vec<u8>,
+    info: ModelInfo,
+    mem: Vec<f32>,
+}
+
+impl KernelHostEngine {
+    /// Lower an `.onnx` file (validated against `expected`) and load the blob.
+    pub fn load_onnx(path: &Path, expected: &Expectation) -> Result<Self> {
+        Self::from_lowered(lower_file(path, expected)?)
+    }
+
+    /// Load a lowered model.
+    pub fn from_lowered(l: LoweredModel) -> Result<Self> {
+        Self::new(l.contract, l.blob)
+    }
+
+    /// Load blob bytes whose contract the caller already knows (checked against the blob).
+    pub fn new(contract: Contract, blob: Vec<u8>) -> Result<Self> {
+        let info = parse(&blob)?;
+        if info.dims != contract.dims() || (info.role == 0) != (contract.role == Role::Denoiser) {
+            return Err(ModelError::Mismatch(
+                "the blob's metadata does not match the contract".into(),
+            ));
+        }
+        let mut mem = vec![
+            0.0;
+            info.memory_len(1)
+                .ok_or(ModelError::Kernel(dips_kernel::nn::NnError::BadLayout))?
+        ];
+        install(&info, &blob, &mut mem)?;
+        Ok(KernelHostEngine {
+            contract,
+            blob,
+            info,
+            mem,
+        })
+    }
+
+    /// The model's contract.
+    pub fn contract(&self) -> &Contract {
+        &self.contract
+    }
+
+    /// Facts about the blob.
+    pub fn info(&self) -> &ModelInfo {
+        &self.info
+    }
+
+    /// Run on contract inputs in contract order.
+    pub fn run(&mut self, batch: usize, inputs: &[&[f32]], output: &mut [f32]) -> Result<()> {
+        check_call(&self.contract, batch, inputs, output)?;
+        if batch > self.info.max_batch(self.mem.len()) {
+            let len = self.info.memory_len(batch).ok_or(ModelError::BadInput {
+                name: "batch".into(),
+                reason: format!("batch {batch} is too large"),
+            })?;
+            self.mem = vec![0.0; len];
+            install(&self.info, &self.blob, &mut self.mem)?;
+        }
+        run(&self.info, &self.blob, &mut self.mem, batch, inputs, output)?;
+        Ok(())
+    }
+
+    fn norm(&self) -> Normalization<'_> {
+        Normalization {
+            mean: &self.contract.norm_mean,
+            std: &self.contract.norm_std,
+        }
+    }
+}
+
+impl DenoiserEngine for KernelHostEngine {
+    type Error = ModelError;
+
+    fn dims(&self) -> ModelDims {
+        self.contract.dims()
+    }
+
+    fn normalization(&self) -> Normalization<'_> {
+        self.norm()
+    }
+
+    fn max_batch(&self) -> usize {
+        usize::MAX
+    }
+
+    fn predict_eps(
+        &mut self,
+        batch: usize,
+        x: &[f32],
+        t: &[f32],
+        context: &[f32],
+        cond_mask: &[f32],
+        eps: &mut [f32],
+    ) -> Result<()> {
+        if self.contract.role != Role::Denoiser {
+            return Err(ModelError::Mismatch(
+                "predict_eps called on a discriminator".into(),
+            ));
+        }
+        self.run(batch, &[x, t, context, cond_mask], eps)
+    }
+}
+
+impl DiscriminatorEngine for KernelHostEngine {
+    type Error = ModelError;
+
+    fn dims(&self) -> ModelDims {
+        self.contract.dims()
+    }
+
+    fn normalization(&self) -> Normalization<'_> {
+        self.norm()
+    }
+
+    fn max_batch(&self) -> usize {
+        usize::MAX
+    }
+
+    fn p_real(
+        &mut self,
+        batch: usize,
+        x: &[f32],
+        context: &[f32],
+        p_real: &mut [f32],
+    ) -> Result<()> {
+        if self.contract.role != Role::Discriminator {
+            return Err(ModelError::Mismatch("p_real called on a denoiser".into()));
+        }
+        self.run(batch, &[x, context], p_real)
+    }
+}
