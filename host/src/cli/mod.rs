@@ -2,6 +2,9 @@
 
 use clap::{Parser, Subcommand};
 
+pub mod bench;
+pub mod model;
+
 /// DIPS: diffusion-informed probabilistic contact search for multi-finger manipulation.
 #[derive(Debug, Parser)]
 #[command(name = "dips", version, about)]
@@ -13,10 +16,19 @@ pub struct Cli {
 
 /// Top-level commands.
 #[derive(Debug, Subcommand)]
-pub enum Command {}
+pub enum Command {
+    /// Validate, run and lower contract-v1 models.
+    Model(model::ModelArgs),
+    /// Benchmarks that print JSON figures.
+    #[command(subcommand)]
+    Bench(bench::Bench),
+}
 
 /// Parse the process arguments and run the command.
 pub fn main() -> anyhow::Result<()> {
     let cli = Cli::parse();
-    match cli.command {}
+    match cli.command {
+        Command::Model(args) => model::run(args),
+        Command::Bench(b) => bench::run(b),
+    }
 }

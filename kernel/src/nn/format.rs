@@ -175,6 +175,30 @@ pub enum Op {
         /// Bias, `channels` floats.
         bias: W,
     },
+    /// Group normalization with a per-channel affine map and optional Mish: each of the
+    /// `groups` blocks of `group_len` elements is normalized, then element `i` of the sample
+    /// is mapped by `γ[i / channel_len]`, `β[i / channel_len]` (exporters' GroupNorm:
+    /// Reshape, InstanceNormalization, Reshape, Mul, Add, Mish fused into one pass).
+    GroupNorm {
+        /// Input, `groups × group_len` floats.
+        x: Buf,
+        /// Output, same shape.
+        y: Buf,
+        /// Groups.
+        groups: u32,
+        /// Elements per group.
+        group_len: u32,
+        /// Elements per channel (divides `group_len`).
+        channel_len: u32,
+        /// Variance epsilon.
+        eps: f32,
+        /// Per-channel scale.
+        gamma: W,
+        /// Per-channel shift.
+        beta: W,
+        /// Apply Mish after the affine map.
+        mish: bool,
+    },
     /// `y = f(x)` element-wise.
     Unary {
         /// Input.

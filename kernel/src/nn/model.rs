@@ -116,6 +116,9 @@ fn op_refs_ok(op: &Op, arena: usize, n: usize) -> bool {
         Op::InstanceNorm {
             x, y, scale, bias, ..
         } => io(x, y) && w_ok(scale, n) && w_ok(bias, n),
+        Op::GroupNorm {
+            x, y, gamma, beta, ..
+        } => io(x, y) && w_ok(gamma, n) && w_ok(beta, n),
         Op::Unary { x, y, .. } | Op::ReduceMean { x, y, .. } => io(x, y),
         Op::Binary { a, b, y, .. } => {
             buf_ok(y, arena) && operand_ok(a, arena, n, y) && operand_ok(b, arena, n, y)
@@ -366,6 +369,36 @@ fn exec(
                 let xs = src.get(i * l..(i + 1) * l)?;
                 let ys = dst.get_mut(i * l..(i + 1) * l)?;
                 ops::norm::instance_norm(xs, ys, *len as usize, *eps, sc, bi).ok()?;
+            }
+        }
+        Op::GroupNorm {
+            x,
+            y,
+            group_len,
+            channel_len,
+            eps,
+            gamma,
+            beta,
+            mish,
+            ..
+        } => {
+            let (src, dst) = split(arena, r(x), r(y))?;
+            let (ga, be) = (wslice(weights, gamma)?, wslice(weights, beta)?);
+            let l = x.len as usize;
+            for i in 0..batch {
+                let xs = src.get(i * l..(i + 1) * l)?;
+                let ys = dst.get_mut(i * l..(i + 1) * l)?;
+                ops::norm::group_norm(
+                    xs,
+                    ys,
+                    *group_len as usize,
+                    *channel_len as usize,
+                    *eps,
+                    ga,
+                    be,
+                    *mish,
+                )
+                .ok()?;
             }
         }
         Op::Unary { x, y, f } => {

@@ -17,6 +17,7 @@
 pub mod copyplan;
 mod emit;
 mod fold;
+mod fuse;
 mod plan;
 pub mod tensors;
 mod writer;
@@ -58,8 +59,10 @@ fn lower_with_contract(proto: &pb::ModelProto, contract: Contract) -> Result<Low
         .as_ref()
         .ok_or_else(|| ModelError::Protobuf("no graph".into()))?;
     let nodes = emit::fuse_patterns(&graph.node);
-    let a = emit::Builder::build(graph, &nodes, &contract, opset, PROBE_BATCHES[0])?;
-    let b = emit::Builder::build(graph, &nodes, &contract, opset, PROBE_BATCHES[1])?;
+    let mut a = emit::Builder::build(graph, &nodes, &contract, opset, PROBE_BATCHES[0])?;
+    let mut b = emit::Builder::build(graph, &nodes, &contract, opset, PROBE_BATCHES[1])?;
+    fuse::fuse_group_norm(&mut a);
+    fuse::fuse_group_norm(&mut b);
     if a.ops != b.ops || a.weights != b.weights || a.storages != b.storages {
         return Err(ModelError::Lowering {
             op: "graph".into(),

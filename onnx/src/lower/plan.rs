@@ -3,7 +3,7 @@
 
 use dips_kernel::nn::format::{Buf, Op, Operand};
 
-fn reads(op: &Op) -> Vec<Buf> {
+pub(super) fn reads(op: &Op) -> Vec<Buf> {
     let act = |o: &Operand| {
         if let Operand::Act(b) = o {
             Some(*b)
@@ -15,6 +15,7 @@ fn reads(op: &Op) -> Vec<Buf> {
         Op::Conv1d { x, .. }
         | Op::ConvTranspose1d { x, .. }
         | Op::InstanceNorm { x, .. }
+        | Op::GroupNorm { x, .. }
         | Op::Unary { x, .. }
         | Op::ReduceMean { x, .. } => vec![*x],
         Op::Gemm { a, .. } => vec![*a],
@@ -24,11 +25,12 @@ fn reads(op: &Op) -> Vec<Buf> {
     }
 }
 
-fn writes(op: &Op) -> Buf {
+pub(super) fn writes(op: &Op) -> Buf {
     match op {
         Op::Conv1d { y, .. }
         | Op::ConvTranspose1d { y, .. }
         | Op::InstanceNorm { y, .. }
+        | Op::GroupNorm { y, .. }
         | Op::Unary { y, .. }
         | Op::ReduceMean { y, .. }
         | Op::Gemm { y, .. }

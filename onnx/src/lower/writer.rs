@@ -60,6 +60,7 @@ fn remap(op: &Op, offsets: &[usize]) -> Op {
         Op::Conv1d { x, y, .. }
         | Op::ConvTranspose1d { x, y, .. }
         | Op::InstanceNorm { x, y, .. }
+        | Op::GroupNorm { x, y, .. }
         | Op::Unary { x, y, .. }
         | Op::ReduceMean { x, y, .. } => {
             *x = m(x);

@@ -68,7 +68,7 @@ fn check_common(
 ) -> Result<(), OpSizeError> {
     let [cin, cout, coutp, lin, lout, k, s, d, _] = geom(g);
     ensure(cin > 0 && cout > 0 && k > 0 && s > 0 && d > 0 && lout > 0)?;
-    ensure(coutp >= cout && coutp % CO_BLOCK == 0)?;
+    ensure(coutp == padded_channels(cout))?;
     ensure(x.len() == mul(cin, lin)?)?;
     ensure(y.len() == mul(cout, lout)?)?;
     ensure(w.len() == mul(mul(cin, k)?, coutp)?)?;

@@ -29,6 +29,54 @@ pub fn instance_norm(
     Ok(())
 }
 
+/// One sample of group normalization with a per-channel affine map and optional Mish
+/// ([`crate::nn::format::Op::GroupNorm`]).
+#[allow(clippy::too_many_arguments)]
+pub fn group_norm(
+    x: &[f32],
+    y: &mut [f32],
+    group_len: usize,
+    channel_len: usize,
+    eps: f32,
+    gamma: &[f32],
+    beta: &[f32],
+    mish: bool,
+) -> Result<(), OpSizeError> {
+    ensure(group_len > 0 && channel_len > 0 && group_len % channel_len == 0)?;
+    ensure(x.len() == y.len() && x.len() % group_len == 0)?;
+    ensure(gamma.len() == x.len() / channel_len && beta.len() == gamma.len())?;
+    let inv_len = 1.0 / group_len as f32;
+    let per_group = group_len / channel_len;
+    for (g, (xg, yg)) in x
+        .chunks_exact(group_len)
+        .zip(y.chunks_exact_mut(group_len))
+        .enumerate()
+    {
+        let mean = xg.iter().sum::<f32>() * inv_len;
+        let var = xg.iter().map(|v| (v - mean) * (v - mean)).sum::<f32>() * inv_len;
+        let rstd = 1.0 / libm::sqrtf(var + eps);
+        for (c, (xc, yc)) in xg
+            .chunks_exact(channel_len)
+            .zip(yg.chunks_exact_mut(channel_len))
+            .enumerate()
+        {
+            let ch = g * per_group + c;
+            let k = gamma[ch] * rstd;
+            let sh = beta[ch] - mean * k;
+            if mish {
+                for (o, v) in yc.iter_mut().zip(xc) {
+                    *o = super::elementwise::mish(v * k + sh);
+                }
+            } else {
+                for (o, v) in yc.iter_mut().zip(xc) {
+                    *o = v * k + sh;
+                }
+            }
+        }
+    }
+    Ok(())
+}
+
 /// One sample of `y[o, i] = mean_l x[o, l, i]`.
 pub fn reduce_mean(
     x: &[f32],
@@ -80,6 +128,26 @@ mod tests {
         instance_norm(&x, &mut y, l, 1e-5, &scale, &bias).unwrap();
         assert_close(&y, &want, 1e-5);
         assert!(instance_norm(&x, &mut y, l, 1e-5, &scale[1..], &bias).is_err());
+    }
+
+    #[test]
+    fn group_norm_matches_instance_norm_then_affine_then_mish() {
+        let (groups, cpg, l) = (4, 3, 10);
+        let c = groups * cpg;
+        let x: Vec<f32> = rand_vec(c * l, 11).iter().map(|v| v * 2.0 - 0.3).collect();
+        let gamma = rand_vec(c, 12);
+        let beta = rand_vec(c, 13);
+        let mut n = vec![0.0; c * l];
+        instance_norm(&x, &mut n, cpg * l, 1e-5, &[1.0; 4], &[0.0; 4]).unwrap();
+        let want: Vec<f32> = n
+            .iter()
+            .enumerate()
+            .map(|(i, v)| crate::nn::ops::elementwise::mish(v * gamma[i / l] + beta[i / l]))
+            .collect();
+        let mut y = vec![0.0; c * l];
+        group_norm(&x, &mut y, cpg * l, l, 1e-5, &gamma, &beta, true).unwrap();
+        assert_close(&y, &want, 1e-5);
+        assert!(group_norm(&x, &mut y, cpg * l, 7, 1e-5, &gamma, &beta, true).is_err());
     }
 
     #[test]

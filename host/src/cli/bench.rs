@@ -1,0 +1,117 @@
+//! `dips bench ...`: benchmarks that print JSON figures.
+
+use std::path::PathBuf;
+use std::time::Instant;
+
+use clap::{Args, Subcommand};
+use dips_kernel::rng::KernelRng;
+
+use super::model::{AnyEngine, EngineKind};
+
+/// `dips bench` subcommands.
+#[derive(Debug, Subcommand)]
+pub enum Bench {
+    /// Median seconds per call of both engines on one model at one batch.
+    Inference(InferenceArgs),
+}
+
+/// Arguments of `dips bench inference`.
+#[derive(Debug, Args)]
+pub struct InferenceArgs {
+    /// The `.onnx` file.
+    pub file: PathBuf,
+    /// Batch size.
+    #[arg(long, default_value_t = 96)]
+    pub batch: usize,
+    /// Timed calls per engine (after warm-up calls).
+    #[arg(long, default_value_t = 30)]
+    pub iters: usize,
+    /// Print JSON (the only output format).
+    #[arg(long)]
+    pub json: bool,
+}
+
+fn median(mut v: Vec<f64>) -> f64 {
+    v.sort_by(f64::total_cmp);
+    v[v.len() / 2]
+}
+
+fn time_engine(
+    kind: EngineKind,
+    a: &InferenceArgs,
+    inputs: &[Vec<f32>],
+) -> anyhow::Result<(f64, Vec<f32>)> {
+    let mut e = AnyEngine::load(kind, &a.file)?;
+    let refs: Vec<&[f32]> = inputs.iter().map(Vec::as_slice).collect();
+    let mut out = vec![0.0; a.batch * e.contract().output_shape().iter().product::<usize>()];
+    for _ in 0..3 {
+        e.run(a.batch, &refs, &mut out)?;
+    }
+    let mut times = Vec::with_capacity(a.iters);
+    for _ in 0..a.iters.max(1) {
+        let t0 = Instant::now();
+        e.run(a.batch, &refs, &mut out)?;
+        times.push(t0.elapsed().as_secs_f64());
+    }
+    Ok((median(times), out))
+}
+
+/// Run `dips bench`.
+pub fn run(b: Bench) -> anyhow::Result<()> {
+    match b {
+        Bench::Inference(a) => {
+            anyhow::ensure!(a.batch > 0, "--batch must be positive");
+            let probe = AnyEngine::load(EngineKind::Tract, &a.file)?;
+            let c = probe.contract().clone();
+            drop(probe);
+            let mut rng = KernelRng::seed_from_u64(7);
+            let inputs: Vec<Vec<f32>> = c
+                .role
+                .input_names()
+                .iter()
+                .map(|n| {
+                    let len = a.batch
+                        * c.input_shape(n)
+                            .unwrap_or_default()
+                            .iter()
+                            .product::<usize>();
+                    let mut v = vec![0.0; len];
+                    match *n {
+                        "t" => v
+                            .iter_mut()
+                            .for_each(|x| *x = rng.below(c.diffusion_steps as u32) as f32),
+                        "context" => v
+                            .iter_mut()
+                            .for_each(|x| *x = if rng.below(2) == 0 { -1.0 } else { 1.0 }),
+                        "cond_mask" => v.iter_mut().for_each(|x| *x = rng.below(2) as f32),
+                        _ => rng.fill_normal(&mut v),
+                    }
+                    v
+                })
+                .collect();
+            let (tract_s, tract_out) = time_engine(EngineKind::Tract, &a, &inputs)?;
+            let (kernel_s, kernel_out) = time_engine(EngineKind::Kernel, &a, &inputs)?;
+            let max_abs_diff = tract_out
+                .iter()
+                .zip(&kernel_out)
+                .map(|(x, y)| (x - y).abs())
+                .fold(0.0f32, f32::max);
+            println!(
+                "{}",
+                serde_json::json!({
+                    "bench": "inference",
+                    "file": a.file.display().to_string(),
+                    "role": c.role.name(),
+                    "task": c.task,
+                    "batch": a.batch,
+                    "iters": a.iters,
+                    "tract_s": tract_s,
+                    "kernel_s": kernel_s,
+                    "kernel_over_tract": kernel_s / tract_s,
+                    "max_abs_diff": max_abs_diff,
+                })
+            );
+        }
+    }
+    Ok(())
+}

@@ -1,0 +1,159 @@
+//! Op fusion on the emitted program: the exporters' GroupNorm idiom
+//! `InstanceNorm(groups) → Mul(γ per channel) → Add(β per channel) [→ Mish]` becomes one
+//! [`Op::GroupNorm`], which reads and writes the activation once instead of three or four times.
+
+use dips_kernel::nn::format::{BinaryFn, Op, Operand, UnaryFn, W};
+
+use super::emit::Program;
+use super::plan::{reads, writes};
+
+/// Consumers of every storage (op indices), the output counting as a consumer.
+fn consumers(p: &Program) -> Vec<Vec<usize>> {
+    let mut c = vec![Vec::new(); p.storages.len()];
+    for (i, op) in p.ops.iter().enumerate() {
+        for r in reads(op) {
+            c[r.off as usize].push(i);
+        }
+    }
+    c[p.output].push(usize::MAX);
+    c
+}
+
+/// The single consumer of storage `st`, if it has exactly one.
+fn only(c: &[Vec<usize>], st: usize) -> Option<usize> {
+    match c[st].as_slice() {
+        [i] if *i != usize::MAX => Some(*i),
+        _ => None,
+    }
+}
+
+/// A per-channel broadcast `act ⊙ w` over per-sample `[channels, channel_len]`: returns the
+/// weight, the channel length and the output storage.
+fn per_channel(op: &Op, f: BinaryFn, input: usize, total: usize) -> Option<(W, usize, usize)> {
+    let Op::Binary {
+        a,
+        b,
+        y,
+        f: g,
+        dims,
+        sa,
+        sb,
+    } = op
+    else {
+        return None;
+    };
+    if *g != f {
+        return None;
+    }
+    let (act, w, sw, sx) = match (a, b) {
+        (Operand::Act(x), Operand::Weight(w)) => (x, w, sb, sa),
+        (Operand::Weight(w), Operand::Act(x)) if matches!(f, BinaryFn::Add | BinaryFn::Mul) => {
+            (x, w, sa, sb)
+        }
+        _ => return None,
+    };
+    let [d0, d1, c, l] = *dims;
+    let ok = act.off as usize == input
+        && d0 == 1
+        && d1 == 1
+        && (c * l) as usize == total
+        && *sx == [0, 0, l, 1]
+        && *sw == [0, 0, 1, 0]
+        && w.len == c;
+    ok.then_some((*w, l as usize, y.off as usize))
+}
+
+/// Apply the GroupNorm fusion everywhere it matches.
+pub(super) fn fuse_group_norm(p: &mut Program) {
+    let mut removed = vec![false; p.ops.len()];
+    let c = consumers(p);
+    for i in 0..p.ops.len() {
+        let Op::InstanceNorm {
+            x,
+            y,
+            channels,
+            len,
+            eps,
+            scale,
+            bias,
+        } = p.ops[i]
+        else {
+            continue;
+        };
+        let total = (channels * len) as usize;
+        let n = y.off as usize;
+        let Some(j) = only(&c, n) else { continue };
+        let Some((gamma, cl, m)) = per_channel(&p.ops[j], BinaryFn::Mul, n, total) else {
+            continue;
+        };
+        let Some(k) = only(&c, m) else { continue };
+        let Some((beta, cl2, a)) = per_channel(&p.ops[k], BinaryFn::Add, m, total) else {
+            continue;
+        };
+        if cl != cl2 || len as usize % cl != 0 {
+            continue;
+        }
+        let (mut out, mut last) = (a, None);
+        if let Some(l) = only(&c, a) {
+            if let Op::Unary {
+                f: UnaryFn::Mish,
+                y,
+                ..
+            } = p.ops[l]
+            {
+                out = y.off as usize;
+                last = Some(l);
+            }
+        }
+        // Fold the instance norm's per-group affine map into the per-channel one.
+        let wv = |w: W| p.weights[w.off as usize..(w.off + w.len) as usize].to_vec();
+        let (s, b, g, be) = (wv(scale), wv(bias), wv(gamma), wv(beta));
+        let per_group = len as usize / cl;
+        let g2: Vec<f32> = (0..g.len()).map(|ch| s[ch / per_group] * g[ch]).collect();
+        let b2: Vec<f32> = (0..g.len())
+            .map(|ch| b[ch / per_group] * g[ch] + be[ch])
+            .collect();
+        let gw = W {
+            off: p.weights.len() as u32,
+            len: g2.len() as u32,
+        };
+        p.weights.extend(g2);
+        let bw = W {
+            off: p.weights.len() as u32,
+            len: b2.len() as u32,
+        };
+        p.weights.extend(b2);
+        let y = dips_kernel::nn::format::Buf {
+            off: out as u32,
+            len: total as u32,
+        };
+        p.ops[i] = Op::GroupNorm {
+            x,
+            y,
+            groups: channels,
+            group_len: len,
+            channel_len: cl as u32,
+            eps,
+            gamma: gw,
+            beta: bw,
+            mish: last.is_some(),
+        };
+        removed[j] = true;
+        removed[k] = true;
+        if let Some(l) = last {
+            removed[l] = true;
+        }
+    }
+    let ops = std::mem::take(&mut p.ops);
+    p.ops = ops
+        .into_iter()
+        .zip(removed)
+        .filter(|(_, r)| !r)
+        .map(|(o, _)| o)
+        .collect();
+    debug_assert!(
+        p.ops
+            .iter()
+            .all(|o| (writes(o).off as usize) < p.storages.len())
+    );
+}
