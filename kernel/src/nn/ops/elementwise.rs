@@ -15,7 +15,8 @@ pub fn exp_fast(x: f32) -> f32 {
     // Adding and subtracting 1.5·2²³ rounds to the nearest integer without a branch.
     const ROUND: f32 = 12_582_912.0;
     let x = x.clamp(-87.0, 88.0);
-    let n = (x * LOG2E + ROUND) - ROUND;
+    let t = x * LOG2E + ROUND;
+    let n = t - ROUND;
     let r = x - n * LN2_HI - n * LN2_LO;
     let p = 1.987_569_1e-4_f32;
     let p = p * r + 1.398_199_9e-3;
@@ -24,8 +25,10 @@ pub fn exp_fast(x: f32) -> f32 {
     let p = p * r + 1.666_666_5e-1;
     let p = p * r + 5e-1;
     let e = p * r * r + r + 1.0;
-    let bits = ((n as i32 + 127) as u32) << 23;
-    e * f32::from_bits(bits)
+    // `t`'s low mantissa bits hold `n` (|n| ≤ 127 < 2²²): integer maths only, no
+    // saturating float-to-int conversion, so the loop stays vectorized.
+    let n_int = t.to_bits().wrapping_sub(ROUND.to_bits());
+    e * f32::from_bits(n_int.wrapping_add(127) << 23)
 }
 
 /// `ln(1 + eˣ)` without overflow for large `x`.
@@ -46,6 +49,13 @@ pub fn mish(x: f32) -> f32 {
     let n = e * (e + 2.0);
     let m = x * n / (n + 2.0);
     if x > 20.0 { x } else { m }
+}
+
+/// [`mish`] over a slice, in place.
+pub fn mish_in_place(y: &mut [f32]) {
+    for v in y.iter_mut() {
+        *v = mish(*v);
+    }
 }
 
 /// `1 / (1 + e⁻ˣ)`.

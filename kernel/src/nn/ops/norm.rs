@@ -2,6 +2,24 @@
 
 use super::{OpSizeError, ensure, mul};
 
+/// `Σ f(xᵢ)` with eight interleaved partial sums, so the loop vectorizes.
+#[inline(always)]
+fn sum_by(x: &[f32], f: impl Fn(f32) -> f32) -> f32 {
+    let mut acc = [0.0f32; 8];
+    let chunks = x.chunks_exact(8);
+    let tail = chunks.remainder();
+    for c in chunks {
+        for (a, v) in acc.iter_mut().zip(c) {
+            *a += f(*v);
+        }
+    }
+    let mut s = acc.iter().sum::<f32>();
+    for v in tail {
+        s += f(*v);
+    }
+    s
+}
+
 /// One sample of instance normalization over rows: each of the `channels` rows of `len`
 /// elements is normalized to zero mean and unit variance (biased), then scaled and shifted
 /// per row: `y = (x − μ)/√(σ² + ε)·scale + bias`.
@@ -18,8 +36,8 @@ pub fn instance_norm(
     ensure(scale.len() == channels && bias.len() == channels)?;
     let inv_len = 1.0 / len as f32;
     for (c, (xr, yr)) in x.chunks_exact(len).zip(y.chunks_exact_mut(len)).enumerate() {
-        let mean = xr.iter().sum::<f32>() * inv_len;
-        let var = xr.iter().map(|v| (v - mean) * (v - mean)).sum::<f32>() * inv_len;
+        let mean = sum_by(xr, |v| v) * inv_len;
+        let var = sum_by(xr, |v| (v - mean) * (v - mean)) * inv_len;
         let k = scale[c] / libm::sqrtf(var + eps);
         let sh = bias[c] - mean * k;
         for (o, v) in yr.iter_mut().zip(xr) {
@@ -52,8 +70,8 @@ pub fn group_norm(
         .zip(y.chunks_exact_mut(group_len))
         .enumerate()
     {
-        let mean = xg.iter().sum::<f32>() * inv_len;
-        let var = xg.iter().map(|v| (v - mean) * (v - mean)).sum::<f32>() * inv_len;
+        let mean = sum_by(xg, |v| v) * inv_len;
+        let var = sum_by(xg, |v| (v - mean) * (v - mean)) * inv_len;
         let rstd = 1.0 / libm::sqrtf(var + eps);
         for (c, (xc, yc)) in xg
             .chunks_exact(channel_len)
@@ -63,16 +81,14 @@ pub fn group_norm(
             let ch = g * per_group + c;
             let k = gamma[ch] * rstd;
             let sh = beta[ch] - mean * k;
-            if mish {
-                for (o, v) in yc.iter_mut().zip(xc) {
-                    *o = super::elementwise::mish(v * k + sh);
-                }
-            } else {
-                for (o, v) in yc.iter_mut().zip(xc) {
-                    *o = v * k + sh;
-                }
+            for (o, v) in yc.iter_mut().zip(xc) {
+                *o = v * k + sh;
             }
         }
+    }
+    // One long pass over the sample vectorizes; per-channel rows are often only 3-16 long.
+    if mish {
+        super::elementwise::mish_in_place(y);
     }
     Ok(())
 }
