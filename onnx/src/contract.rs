@@ -114,22 +114,22 @@ impl Contract {
 
     /// Refuse a model made for another task or role, naming the mismatch.
     pub fn expect(&self, expected: &Expectation) -> Result<()> {
-        if let Some(role) = expected.role {
-            if role != self.role {
-                return Err(ModelError::Mismatch(format!(
-                    "expected a {} model, this is a {}",
-                    role.name(),
-                    self.role.name()
-                )));
-            }
+        if let Some(role) = expected.role
+            && role != self.role
+        {
+            return Err(ModelError::Mismatch(format!(
+                "expected a {} model, this is a {}",
+                role.name(),
+                self.role.name()
+            )));
         }
-        if let Some(task) = &expected.task {
-            if task != &self.task {
-                return Err(ModelError::Mismatch(format!(
-                    "expected a model for task {task:?}, this one is for task {:?}",
-                    self.task
-                )));
-            }
+        if let Some(task) = &expected.task
+            && task != &self.task
+        {
+            return Err(ModelError::Mismatch(format!(
+                "expected a model for task {task:?}, this one is for task {:?}",
+                self.task
+            )));
         }
         Ok(())
     }
@@ -252,10 +252,10 @@ fn check_value(v: &pb::ValueInfoProto, want: &[usize], strict_inner: bool) -> Re
             dims.len()
         )));
     }
-    if let Some(Some(b)) = dims.first() {
-        if *b < 1 {
-            return Err(contract_err(format!("{} has batch axis {b}", v.name)));
-        }
+    if let Some(Some(b)) = dims.first()
+        && *b < 1
+    {
+        return Err(contract_err(format!("{} has batch axis {b}", v.name)));
     }
     for (axis, (got, want)) in dims[1..].iter().zip(want).enumerate() {
         match got {

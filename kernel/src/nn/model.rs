@@ -269,11 +269,7 @@ fn region(b: &Buf, mb: usize, batch: usize) -> (usize, usize) {
 }
 
 /// Split the arena into a read-only source and the destination region.
-fn split<'a>(
-    arena: &'a mut [f32],
-    x: (usize, usize),
-    y: (usize, usize),
-) -> Option<(&'a [f32], &'a mut [f32])> {
+fn split(arena: &mut [f32], x: (usize, usize), y: (usize, usize)) -> Option<(&[f32], &mut [f32])> {
     let (left, rest) = arena.split_at_mut_checked(y.0)?;
     let (mid, right) = rest.split_at_mut_checked(y.1 - y.0)?;
     let src = if x.1 <= y.0 {

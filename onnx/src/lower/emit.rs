@@ -1004,10 +1004,10 @@ impl Builder {
         if pads.len() != 2 || pads.iter().any(|p| *p < 0) || s < 1 || d < 1 {
             return Err(format!("pads {pads:?}, stride {s}, dilation {d} not supported").into());
         }
-        if let Some(kk) = attrs.ints("kernel_shape") {
-            if kk != [k as i64] {
-                return Err("kernel_shape disagrees with the kernel".into());
-            }
+        if let Some(kk) = attrs.ints("kernel_shape")
+            && kk != [k as i64]
+        {
+            return Err("kernel_shape disagrees with the kernel".into());
         }
         let (s, d, pb, pe) = (s as usize, d as usize, pads[0] as usize, pads[1] as usize);
         let lout = if transposed {

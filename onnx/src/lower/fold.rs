@@ -59,7 +59,7 @@ pub(super) fn binary(
     })
 }
 
-fn input<'a>(ins: &'a [Option<Const>], i: usize) -> std::result::Result<&'a Const, String> {
+fn input(ins: &[Option<Const>], i: usize) -> std::result::Result<&Const, String> {
     ins.get(i)
         .and_then(Option::as_ref)
         .ok_or_else(|| format!("missing input {i}"))
@@ -94,7 +94,7 @@ pub(super) fn reshape_dims(
     }
     let known: usize = out.iter().product();
     if let Some(i) = infer {
-        if known == 0 || total % known != 0 {
+        if known == 0 || !total.is_multiple_of(known) {
             return Err(format!("cannot infer -1 reshaping {input:?} to {target:?}"));
         }
         out[i] = total / known;
@@ -155,12 +155,15 @@ pub(super) fn squeeze_dims(
     }
 }
 
+/// Slice parameters: axes, starts, ends, steps.
+pub(super) type SliceParams = (Vec<usize>, Vec<i64>, Vec<i64>, Vec<i64>);
+
 /// Slice parameters from inputs (opset ≥ 10) or attributes (older).
 pub(super) fn slice_params(
     attrs: &Attrs,
     ins: &[Option<Const>],
     rank: usize,
-) -> std::result::Result<(Vec<usize>, Vec<i64>, Vec<i64>, Vec<i64>), String> {
+) -> std::result::Result<SliceParams, String> {
     let get = |i: usize, name: &str| -> Option<Vec<i64>> {
         ins.get(i)
             .and_then(Option::as_ref)

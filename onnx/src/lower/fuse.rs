@@ -90,20 +90,19 @@ pub(super) fn fuse_group_norm(p: &mut Program) {
         let Some((beta, cl2, a)) = per_channel(&p.ops[k], BinaryFn::Add, m, total) else {
             continue;
         };
-        if cl != cl2 || len as usize % cl != 0 {
+        if cl != cl2 || !(len as usize).is_multiple_of(cl) {
             continue;
         }
         let (mut out, mut last) = (a, None);
-        if let Some(l) = only(&c, a) {
-            if let Op::Unary {
+        if let Some(l) = only(&c, a)
+            && let Op::Unary {
                 f: UnaryFn::Mish,
                 y,
                 ..
             } = p.ops[l]
-            {
-                out = y.off as usize;
-                last = Some(l);
-            }
+        {
+            out = y.off as usize;
+            last = Some(l);
         }
         // Fold the instance norm's per-group affine map into the per-channel one.
         let wv = |w: W| p.weights[w.off as usize..(w.off + w.len) as usize].to_vec();

@@ -279,7 +279,8 @@ mod tests {
     #[test]
     fn binary_broadcasts_like_numpy() {
         // [2,3,5] - [3,1] ; [1,3,5] - [2,3,1] ; same shapes.
-        let cases: [([usize; 4], [usize; 4], [usize; 4], usize, usize); 3] = [
+        type Case = ([usize; 4], [usize; 4], [usize; 4], usize, usize);
+        let cases: [Case; 3] = [
             ([1, 2, 3, 5], [0, 15, 5, 1], [0, 0, 1, 0], 30, 3),
             ([1, 2, 3, 5], [0, 0, 5, 1], [0, 3, 1, 0], 15, 6),
             ([1, 1, 4, 7], [0, 0, 7, 1], [0, 0, 7, 1], 28, 28),

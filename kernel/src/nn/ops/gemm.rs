@@ -12,7 +12,7 @@ pub fn gemm(
     n: usize,
 ) -> Result<(), OpSizeError> {
     ensure(k > 0 && n > 0)?;
-    ensure(a.len() % k == 0)?;
+    ensure(a.len().is_multiple_of(k))?;
     let rows = a.len() / k;
     ensure(y.len() == mul(rows, n)? && w.len() == mul(k, n)? && b.len() == n)?;
     for (arow, yrow) in a.chunks_exact(k).zip(y.chunks_exact_mut(n)) {

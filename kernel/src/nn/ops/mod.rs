@@ -19,6 +19,12 @@ pub(crate) fn ensure(cond: bool) -> Result<(), OpSizeError> {
     if cond { Ok(()) } else { Err(OpSizeError) }
 }
 
+/// `a · b` as `usize`, or an error on overflow.
+#[inline]
+pub(crate) fn mul(a: usize, b: usize) -> Result<usize, OpSizeError> {
+    a.checked_mul(b).ok_or(OpSizeError)
+}
+
 #[cfg(test)]
 pub(crate) mod testutil {
     /// Deterministic pseudo-random floats in [-1, 1).
@@ -40,10 +46,4 @@ pub(crate) mod testutil {
             assert!((x - y).abs() <= tol * (1.0 + y.abs()), "at {i}: {x} vs {y}");
         }
     }
-}
-
-/// `a · b` as `usize`, or an error on overflow.
-#[inline]
-pub(crate) fn mul(a: usize, b: usize) -> Result<usize, OpSizeError> {
-    a.checked_mul(b).ok_or(OpSizeError)
 }

@@ -31,7 +31,7 @@ pub fn instance_norm(
     scale: &[f32],
     bias: &[f32],
 ) -> Result<(), OpSizeError> {
-    ensure(len > 0 && x.len() == y.len() && x.len() % len == 0)?;
+    ensure(len > 0 && x.len() == y.len() && x.len().is_multiple_of(len))?;
     let channels = x.len() / len;
     ensure(scale.len() == channels && bias.len() == channels)?;
     let inv_len = 1.0 / len as f32;
@@ -60,8 +60,8 @@ pub fn group_norm(
     beta: &[f32],
     mish: bool,
 ) -> Result<(), OpSizeError> {
-    ensure(group_len > 0 && channel_len > 0 && group_len % channel_len == 0)?;
-    ensure(x.len() == y.len() && x.len() % group_len == 0)?;
+    ensure(group_len > 0 && channel_len > 0 && group_len.is_multiple_of(channel_len))?;
+    ensure(x.len() == y.len() && x.len().is_multiple_of(group_len))?;
     ensure(gamma.len() == x.len() / channel_len && beta.len() == gamma.len())?;
     let inv_len = 1.0 / group_len as f32;
     let per_group = group_len / channel_len;
