@@ -262,3 +262,50 @@ fn reseal_any(b: &mut [u8]) {
         reseal(b);
     }
 }
+
+#[test]
+fn unsupported_ops_are_named_with_their_node() {
+    let mut m = pb::ModelProto::decode(&*card_bytes()).unwrap();
+    let node = m
+        .graph
+        .as_mut()
+        .unwrap()
+        .node
+        .iter_mut()
+        .find(|n| n.op_type == "Sigmoid")
+        .unwrap();
+    node.op_type = "HardSigmoid".into();
+    let want = if node.name.is_empty() {
+        node.output[0].clone()
+    } else {
+        node.name.clone()
+    };
+    match lower_proto(&m).unwrap_err() {
+        ModelError::UnsupportedOp { op, node } => {
+            assert_eq!(op, "HardSigmoid");
+            assert_eq!(node, want);
+        }
+        e => panic!("expected UnsupportedOp, got {e}"),
+    }
+    // A supported op used in an unsupported way names the node and the reason.
+    let mut m = pb::ModelProto::decode(&*card_bytes()).unwrap();
+    let conv = m
+        .graph
+        .as_mut()
+        .unwrap()
+        .node
+        .iter_mut()
+        .find(|n| n.op_type == "Conv")
+        .unwrap();
+    conv.attribute
+        .iter_mut()
+        .find(|a| a.name == "group")
+        .unwrap()
+        .i = 2;
+    let e = lower_proto(&m).unwrap_err();
+    assert!(
+        matches!(e, ModelError::Lowering { ref op, .. } if op == "Conv"),
+        "{e}"
+    );
+    assert!(e.to_string().contains("grouped"), "{e}");
+}
