@@ -156,3 +156,46 @@ pub(super) fn fuse_group_norm(p: &mut Program) {
             .all(|o| (writes(o).off as usize) < p.storages.len())
     );
 }
+
+/// Every weight range an op references.
+fn weight_refs(op: &mut Op) -> Vec<&mut W> {
+    fn opw(o: &mut Operand) -> Option<&mut W> {
+        if let Operand::Weight(w) = o {
+            Some(w)
+        } else {
+            None
+        }
+    }
+    match op {
+        Op::Conv1d { w, b, .. } | Op::ConvTranspose1d { w, b, .. } | Op::Gemm { w, b, .. } => {
+            vec![w, b]
+        }
+        Op::InstanceNorm { scale, bias, .. } => vec![scale, bias],
+        Op::GroupNorm { gamma, beta, .. } => vec![gamma, beta],
+        Op::Binary { a, b, .. } => opw(a).into_iter().chain(opw(b)).collect(),
+        Op::Copy { x, .. } => opw(x).into_iter().collect(),
+        Op::Unary { .. } | Op::Fill { .. } | Op::ReduceMean { .. } => vec![],
+    }
+}
+
+/// Drop weights no op references any more (the γ/β folded by the GroupNorm fusion), keeping
+/// shared ranges shared.
+pub(super) fn compact_weights(p: &mut Program) {
+    let mut moved: std::collections::HashMap<(u32, u32), W> = std::collections::HashMap::new();
+    let mut out: Vec<f32> = Vec::with_capacity(p.weights.len());
+    for op in &mut p.ops {
+        for w in weight_refs(op) {
+            let key = (w.off, w.len);
+            let new = *moved.entry(key).or_insert_with(|| {
+                let n = W {
+                    off: out.len() as u32,
+                    len: w.len,
+                };
+                out.extend_from_slice(&p.weights[w.off as usize..(w.off + w.len) as usize]);
+                n
+            });
+            *w = new;
+        }
+    }
+    p.weights = out;
+}

@@ -61,8 +61,10 @@ fn lower_with_contract(proto: &pb::ModelProto, contract: Contract) -> Result<Low
     let nodes = emit::fuse_patterns(&graph.node);
     let mut a = emit::Builder::build(graph, &nodes, &contract, opset, PROBE_BATCHES[0])?;
     let mut b = emit::Builder::build(graph, &nodes, &contract, opset, PROBE_BATCHES[1])?;
-    fuse::fuse_group_norm(&mut a);
-    fuse::fuse_group_norm(&mut b);
+    for p in [&mut a, &mut b] {
+        fuse::fuse_group_norm(p);
+        fuse::compact_weights(p);
+    }
     if a.ops != b.ops || a.weights != b.weights || a.storages != b.storages {
         return Err(ModelError::Lowering {
             op: "graph".into(),
