@@ -169,3 +169,58 @@ pub fn apply_const(plan: &CopyPlan, x: &Const, out: Vec<usize>, fill: f64) -> Op
         float: x.float,
     })
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn run(dims: &[usize], plan: &CopyPlan, out: &[usize], fill: f64) -> Vec<f64> {
+        let x = Const::float(
+            dims.to_vec(),
+            (0..dims.iter().product::<usize>())
+                .map(|v| v as f64)
+                .collect(),
+        );
+        apply_const(plan, &x, out.to_vec(), fill).unwrap().data
+    }
+
+    #[test]
+    fn slice_with_negative_step_and_clamped_ends() {
+        // x = [[0,1,2,3,4],[5,6,7,8,9]]; x[:, ::-2] = [[4,2,0],[9,7,5]]
+        let (out, plan) = slice_plan(&[2, 5], &[1], &[-1], &[i64::MIN + 1], &[-2]).unwrap();
+        assert_eq!(out, vec![2, 3]);
+        assert_eq!(
+            run(&[2, 5], &plan, &out, 0.0),
+            vec![4.0, 2.0, 0.0, 9.0, 7.0, 5.0]
+        );
+        // x[1:, 1:100] = [[6,7,8,9]]
+        let (out, plan) = slice_plan(&[2, 5], &[0, 1], &[1, 1], &[2, 100], &[1, 1]).unwrap();
+        assert_eq!(run(&[2, 5], &plan, &out, 0.0), vec![6.0, 7.0, 8.0, 9.0]);
+        assert!(slice_plan(&[2, 5], &[1], &[0], &[5], &[0]).is_none());
+    }
+
+    #[test]
+    fn pad_with_positive_and_negative_amounts() {
+        // [2,3] padded by (0,1) rows and cropped by 1 at the front of columns, 2 at the end added.
+        let (out, plan) = pad_plan(&[2, 3], &[0, -1, 1, 2]).unwrap();
+        assert_eq!(out, vec![3, 4]);
+        let y = run(&[2, 3], &plan, &out, -1.0);
+        assert_eq!(
+            y,
+            vec![
+                1.0, 2.0, -1.0, -1.0, 4.0, 5.0, -1.0, -1.0, -1.0, -1.0, -1.0, -1.0
+            ]
+        );
+        assert!(pad_plan(&[2, 3], &[0, -4, 0, 0]).is_none());
+    }
+
+    #[test]
+    fn transpose_plan_permutes() {
+        let (out, plan) = transpose_plan(&[2, 3], &[1, 0]).unwrap();
+        assert_eq!(out, vec![3, 2]);
+        assert_eq!(
+            run(&[2, 3], &plan, &out, 0.0),
+            vec![0.0, 3.0, 1.0, 4.0, 2.0, 5.0]
+        );
+    }
+}
