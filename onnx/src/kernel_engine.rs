@@ -3,7 +3,6 @@
 
 use std::path::Path;
 
-use dips_kernel::engine::{DenoiserEngine, DiscriminatorEngine, ModelDims, Normalization};
 use dips_kernel::nn::model::{ModelInfo, install, parse, run};
 
 use crate::contract::{Contract, Expectation, Role};
@@ -77,73 +76,6 @@ impl KernelHostEngine {
         run(&self.info, &self.blob, &mut self.mem, batch, inputs, output)?;
         Ok(())
     }
-
-    fn norm(&self) -> Normalization<'_> {
-        Normalization {
-            mean: &self.contract.norm_mean,
-            std: &self.contract.norm_std,
-        }
-    }
 }
 
-impl DenoiserEngine for KernelHostEngine {
-    type Error = ModelError;
-
-    fn dims(&self) -> ModelDims {
-        self.contract.dims()
-    }
-
-    fn normalization(&self) -> Normalization<'_> {
-        self.norm()
-    }
-
-    fn max_batch(&self) -> usize {
-        usize::MAX
-    }
-
-    fn predict_eps(
-        &mut self,
-        batch: usize,
-        x: &[f32],
-        t: &[f32],
-        context: &[f32],
-        cond_mask: &[f32],
-        eps: &mut [f32],
-    ) -> Result<()> {
-        if self.contract.role != Role::Denoiser {
-            return Err(ModelError::Mismatch(
-                "predict_eps called on a discriminator".into(),
-            ));
-        }
-        self.run(batch, &[x, t, context, cond_mask], eps)
-    }
-}
-
-impl DiscriminatorEngine for KernelHostEngine {
-    type Error = ModelError;
-
-    fn dims(&self) -> ModelDims {
-        self.contract.dims()
-    }
-
-    fn normalization(&self) -> Normalization<'_> {
-        self.norm()
-    }
-
-    fn max_batch(&self) -> usize {
-        usize::MAX
-    }
-
-    fn p_real(
-        &mut self,
-        batch: usize,
-        x: &[f32],
-        context: &[f32],
-        p_real: &mut [f32],
-    ) -> Result<()> {
-        if self.contract.role != Role::Discriminator {
-            return Err(ModelError::Mismatch("p_real called on a denoiser".into()));
-        }
-        self.run(batch, &[x, context], p_real)
-    }
-}
+crate::engine::impl_engine_traits!(KernelHostEngine);

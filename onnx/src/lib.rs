@@ -3,6 +3,7 @@
 //! from ONNX to the kernel blob.
 
 pub mod contract;
+pub mod engine;
 pub mod error;
 pub mod io_json;
 pub mod kernel_engine;
@@ -11,6 +12,7 @@ pub mod tasks;
 pub mod tract_engine;
 
 pub use contract::{Contract, Expectation, Role};
+pub use engine::{AnyEngine, EngineKind};
 pub use error::{ModelError, Result};
 pub use kernel_engine::KernelHostEngine;
 pub use lower::{LoweredModel, lower_file, lower_proto};

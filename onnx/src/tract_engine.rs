@@ -4,11 +4,10 @@ use std::collections::HashMap;
 use std::path::Path;
 use std::sync::Arc;
 
-use dips_kernel::engine::{DenoiserEngine, DiscriminatorEngine, ModelDims, Normalization};
 use tract_onnx::pb;
 use tract_onnx::prelude::*;
 
-use crate::contract::{Contract, Expectation, Role, load_contract, validate};
+use crate::contract::{Contract, Expectation, load_contract, validate};
 use crate::error::{ModelError, Result};
 use crate::lower::tensors::check_initializers_finite;
 
@@ -197,70 +196,4 @@ pub fn check_call(c: &Contract, batch: usize, inputs: &[&[f32]], output: &[f32])
     Ok(())
 }
 
-impl DenoiserEngine for TractEngine {
-    type Error = ModelError;
-
-    fn dims(&self) -> ModelDims {
-        self.contract.dims()
-    }
-
-    fn normalization(&self) -> Normalization<'_> {
-        Normalization {
-            mean: &self.contract.norm_mean,
-            std: &self.contract.norm_std,
-        }
-    }
-
-    fn max_batch(&self) -> usize {
-        usize::MAX
-    }
-
-    fn predict_eps(
-        &mut self,
-        batch: usize,
-        x: &[f32],
-        t: &[f32],
-        context: &[f32],
-        cond_mask: &[f32],
-        eps: &mut [f32],
-    ) -> Result<()> {
-        if self.contract.role != Role::Denoiser {
-            return Err(ModelError::Mismatch(
-                "predict_eps called on a discriminator".into(),
-            ));
-        }
-        self.run(batch, &[x, t, context, cond_mask], eps)
-    }
-}
-
-impl DiscriminatorEngine for TractEngine {
-    type Error = ModelError;
-
-    fn dims(&self) -> ModelDims {
-        self.contract.dims()
-    }
-
-    fn normalization(&self) -> Normalization<'_> {
-        Normalization {
-            mean: &self.contract.norm_mean,
-            std: &self.contract.norm_std,
-        }
-    }
-
-    fn max_batch(&self) -> usize {
-        usize::MAX
-    }
-
-    fn p_real(
-        &mut self,
-        batch: usize,
-        x: &[f32],
-        context: &[f32],
-        p_real: &mut [f32],
-    ) -> Result<()> {
-        if self.contract.role != Role::Discriminator {
-            return Err(ModelError::Mismatch("p_real called on a denoiser".into()));
-        }
-        self.run(batch, &[x, context], p_real)
-    }
-}
+crate::engine::impl_engine_traits!(TractEngine);

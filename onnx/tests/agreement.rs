@@ -3,7 +3,7 @@
 
 mod common;
 
-use common::{Engine, FIXTURES, ROLES, assert_agree, fixture, tiled};
+use common::{FIXTURES, ROLES, assert_agree, fixture, load_engine, tiled};
 use dips_onnx::io_json::TensorFile;
 
 fn check(engine: &str) {
@@ -11,7 +11,7 @@ fn check(engine: &str) {
         for role in ROLES {
             let path = fixture(dir, &format!("{role}.onnx"));
             let io = TensorFile::read(&fixture(dir, &format!("{role}.io.json"))).unwrap();
-            let mut e = Engine::load(engine, &path);
+            let mut e = load_engine(engine, &path);
             let c = e.contract().clone();
             for reps in [1, 32] {
                 let (batch, ins, want) = tiled(&c, &io, reps);

@@ -5,7 +5,7 @@ mod common;
 
 use std::path::PathBuf;
 
-use common::{Engine, assert_agree, tiled};
+use common::{assert_agree, load_engine, tiled};
 use dips_onnx::io_json::TensorFile;
 
 fn data(file: &str) -> PathBuf {
@@ -18,7 +18,7 @@ fn data(file: &str) -> PathBuf {
 fn custom_architecture_matches_onnxruntime_on_both_engines() {
     let io = TensorFile::read(&data("custom_card.io.json")).unwrap();
     for engine in ["tract", "kernel"] {
-        let mut e = Engine::load(engine, &data("custom_card.onnx"));
+        let mut e = load_engine(engine, &data("custom_card.onnx"));
         let c = e.contract().clone();
         for reps in [1, 24] {
             let (batch, ins, want) = tiled(&c, &io, reps);
@@ -33,7 +33,7 @@ fn custom_architecture_matches_onnxruntime_on_both_engines() {
 #[test]
 fn kernel_runs_smaller_batches_than_its_memory_holds() {
     let io = TensorFile::read(&data("custom_card.io.json")).unwrap();
-    let mut e = Engine::load("kernel", &data("custom_card.onnx"));
+    let mut e = load_engine("kernel", &data("custom_card.onnx"));
     let c = e.contract().clone();
     let (batch, ins, want) = tiled(&c, &io, 8);
     let refs: Vec<&[f32]> = ins.iter().map(Vec::as_slice).collect();

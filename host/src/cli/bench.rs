@@ -6,7 +6,7 @@ use std::time::Instant;
 use clap::{Args, Subcommand};
 use dips_kernel::rng::KernelRng;
 
-use super::model::{AnyEngine, EngineKind};
+use dips_onnx::{AnyEngine, EngineKind, Expectation};
 
 /// `dips bench` subcommands.
 #[derive(Debug, Subcommand)]
@@ -42,7 +42,7 @@ fn time_engine(
     a: &InferenceArgs,
     inputs: &[Vec<f32>],
 ) -> anyhow::Result<((f64, f64), Vec<f32>)> {
-    let mut e = AnyEngine::load(kind, &a.file)?;
+    let mut e = AnyEngine::load(kind, &a.file, &Expectation::default())?;
     let refs: Vec<&[f32]> = inputs.iter().map(Vec::as_slice).collect();
     let mut out = vec![0.0; a.batch * e.contract().output_shape().iter().product::<usize>()];
     for _ in 0..3 {
@@ -62,9 +62,7 @@ pub fn run(b: Bench) -> anyhow::Result<()> {
     match b {
         Bench::Inference(a) => {
             anyhow::ensure!(a.batch > 0, "--batch must be positive");
-            let probe = AnyEngine::load(EngineKind::Tract, &a.file)?;
-            let c = probe.contract().clone();
-            drop(probe);
+            let (_, c) = dips_onnx::contract::load_contract(&a.file)?;
             let mut rng = KernelRng::seed_from_u64(7);
             let inputs: Vec<Vec<f32>> = c
                 .role

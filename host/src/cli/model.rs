@@ -1,11 +1,11 @@
 //! `dips model check|run|lower`: validate, run and lower contract-v1 ONNX models.
 
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 
 use anyhow::{Context, bail};
 use clap::{Args, Subcommand, ValueEnum};
 use dips_onnx::io_json::{JsonTensor, TensorFile};
-use dips_onnx::{Expectation, KernelHostEngine, TractEngine, contract, lower_file};
+use dips_onnx::{AnyEngine, EngineKind, Expectation, contract, lower_file};
 
 /// Arguments of `dips model`.
 #[derive(Debug, Args)]
@@ -34,8 +34,8 @@ pub enum ModelCommand {
         #[arg(long)]
         output: PathBuf,
         /// Which engine runs it.
-        #[arg(long, value_enum, default_value_t = EngineKind::Tract)]
-        engine: EngineKind,
+        #[arg(long, value_enum, default_value_t = EngineArg::Tract)]
+        engine: EngineArg,
     },
     /// Lower to the kernel blob.
     Lower {
@@ -49,50 +49,18 @@ pub enum ModelCommand {
 
 /// The two inference engines.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
-pub enum EngineKind {
+pub enum EngineArg {
     /// tract-onnx on the `.onnx` file.
     Tract,
     /// The `dips-kernel` interpreter on the lowered blob.
     Kernel,
 }
 
-/// A loaded engine of either kind.
-#[derive(Debug)]
-pub enum AnyEngine {
-    /// tract.
-    Tract(TractEngine),
-    /// The kernel interpreter.
-    Kernel(KernelHostEngine),
-}
-
-impl AnyEngine {
-    /// Load `file` with the chosen engine.
-    pub fn load(kind: EngineKind, file: &Path) -> anyhow::Result<Self> {
-        let any = Expectation::default();
-        Ok(match kind {
-            EngineKind::Tract => AnyEngine::Tract(TractEngine::load(file, &any)?),
-            EngineKind::Kernel => AnyEngine::Kernel(KernelHostEngine::load_onnx(file, &any)?),
-        })
-    }
-
-    /// The model's contract.
-    pub fn contract(&self) -> &dips_onnx::Contract {
-        match self {
-            AnyEngine::Tract(e) => e.contract(),
-            AnyEngine::Kernel(e) => e.contract(),
-        }
-    }
-
-    /// Run on contract inputs in contract order.
-    pub fn run(
-        &mut self,
-        batch: usize,
-        inputs: &[&[f32]],
-        output: &mut [f32],
-    ) -> dips_onnx::Result<()> {
-        match self {
-            AnyEngine::Tract(e) => e.run(batch, inputs, output),
-            AnyEngine::Kernel(e) => e.run(batch, inputs, output),
+impl From<EngineArg> for EngineKind {
+    fn from(e: EngineArg) -> Self {
+        match e {
+            EngineArg::Tract => EngineKind::Tract,
+            EngineArg::Kernel => EngineKind::Kernel,
         }
     }
 }
@@ -132,7 +100,7 @@ pub fn run(args: ModelArgs) -> anyhow::Result<()> {
             output,
             engine,
         } => {
-            let mut e = AnyEngine::load(engine, &file)?;
+            let mut e = AnyEngine::load(engine.into(), &file, &Expectation::default())?;
             let c = e.contract().clone();
             let io = TensorFile::read(&input)?;
             let (batch, ins) = io.contract_inputs(&c)?;

@@ -4,7 +4,7 @@
 use std::path::PathBuf;
 
 use dips_onnx::io_json::TensorFile;
-use dips_onnx::{Contract, Expectation, KernelHostEngine, TractEngine};
+use dips_onnx::{AnyEngine, Contract, EngineKind, Expectation};
 
 pub(crate) fn fixture(dir: &str, file: &str) -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR"))
@@ -41,35 +41,12 @@ pub(crate) fn tiled(
     (batch * reps, ins, out)
 }
 
-pub(crate) enum Engine {
-    Tract(TractEngine),
-    Kernel(KernelHostEngine),
-}
-
-impl Engine {
-    pub(crate) fn load(kind: &str, path: &std::path::Path) -> Self {
-        match kind {
-            "tract" => Engine::Tract(TractEngine::load(path, &Expectation::default()).unwrap()),
-            _ => {
-                Engine::Kernel(KernelHostEngine::load_onnx(path, &Expectation::default()).unwrap())
-            }
-        }
-    }
-    pub(crate) fn contract(&self) -> &Contract {
-        match self {
-            Engine::Tract(e) => e.contract(),
-            Engine::Kernel(e) => e.contract(),
-        }
-    }
-    pub(crate) fn run(
-        &mut self,
-        batch: usize,
-        ins: &[&[f32]],
-        out: &mut [f32],
-    ) -> dips_onnx::Result<()> {
-        match self {
-            Engine::Tract(e) => e.run(batch, ins, out),
-            Engine::Kernel(e) => e.run(batch, ins, out),
-        }
-    }
+/// Load a model with the engine named `"tract"` or `"kernel"`.
+pub(crate) fn load_engine(kind: &str, path: &std::path::Path) -> AnyEngine {
+    let kind = if kind == "tract" {
+        EngineKind::Tract
+    } else {
+        EngineKind::Kernel
+    };
+    AnyEngine::load(kind, path, &Expectation::default()).unwrap()
 }
