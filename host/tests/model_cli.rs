@@ -105,6 +105,33 @@ fn run_with_both_engines_reproduces_the_reference_and_lower_writes_a_blob() {
     );
     let bytes = std::fs::read(&blob).unwrap();
     assert!(dips_kernel::nn::model::parse(&bytes).is_ok());
+    // The blob runs on its own (its contract travels with it).
+    let out_path = d.join("out-blob.json");
+    let out = dips(&[
+        "model",
+        "run",
+        blob.to_str().unwrap(),
+        "--input",
+        io.to_str().unwrap(),
+        "--output",
+        out_path.to_str().unwrap(),
+        "--engine",
+        "kernel",
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let got: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&out_path).unwrap()).unwrap();
+    let got: Vec<f64> = serde_json::from_value(got["outputs"]["p_real"]["data"].clone()).unwrap();
+    for (g, w) in got.iter().zip(&want) {
+        assert!(
+            (g - w).abs() <= (1e-4 * w.abs()).max(1e-5),
+            "blob: {g} vs {w}"
+        );
+    }
 }
 
 #[test]

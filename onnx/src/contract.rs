@@ -112,6 +112,94 @@ impl Contract {
         }
     }
 
+    /// Check the dimensions and column names against the task's layout (`CONTRACTS.md` §2).
+    pub fn check_task(&self) -> Result<()> {
+        let (task, horizon, fingers) = (&self.task, self.horizon, self.fingers);
+        let (state_dim, action_dim) = (self.state_dim, self.action_dim);
+        let layout = task_layout(task).ok_or_else(|| {
+            contract_err(format!(
+                "dips.task {task:?} is not a known task ({})",
+                crate::tasks::KNOWN_TASKS.join(", ")
+            ))
+        })?;
+        if layout.horizon != horizon {
+            return Err(contract_err(format!(
+                "dips.horizon is {horizon}, task {task} has T = {}",
+                layout.horizon
+            )));
+        }
+        if layout.fingers != fingers {
+            return Err(contract_err(format!(
+                "dips.fingers is {fingers}, task {task} has {}",
+                layout.fingers
+            )));
+        }
+        if layout.state_columns.len() != state_dim || layout.action_columns.len() != action_dim {
+            return Err(contract_err(format!(
+                "dips.state_dim/action_dim are {state_dim}/{action_dim}, task {task} has {}/{}",
+                layout.state_columns.len(),
+                layout.action_columns.len()
+            )));
+        }
+        if self.columns.len() != state_dim + action_dim {
+            return Err(contract_err(format!(
+                "dips.columns has {} names, D = {}",
+                self.columns.len(),
+                state_dim + action_dim
+            )));
+        }
+        for (i, (got, want)) in self.columns.iter().zip(layout.columns()).enumerate() {
+            if *got != want {
+                return Err(contract_err(format!(
+                    "dips.columns[{i}] is {got:?}, task {task} has {want:?}"
+                )));
+            }
+        }
+        Ok(())
+    }
+
+    /// The contract a kernel blob carries (checked against the task like an ONNX file's).
+    pub fn from_blob(blob: &[u8]) -> Result<Contract> {
+        let body = dips_kernel::nn::model::decode(blob)?;
+        let m = &body.meta;
+        let weight = |w: dips_kernel::nn::format::W| -> Result<Vec<f32>> {
+            let bytes = body
+                .weights
+                .get(w.off as usize * 4..(w.off as usize + w.len as usize) * 4)
+                .ok_or_else(|| contract_err("the blob's normalization lies outside its weights"))?;
+            Ok(bytes
+                .chunks_exact(4)
+                .map(|c| f32::from_le_bytes([c[0], c[1], c[2], c[3]]))
+                .collect())
+        };
+        let role = match m.role {
+            0 => Role::Denoiser,
+            1 => Role::Discriminator,
+            r => return Err(contract_err(format!("the blob has role {r}"))),
+        };
+        let columns: Vec<String> = serde_json::from_str(m.columns_json).map_err(|e| {
+            contract_err(format!(
+                "the blob's columns are not a JSON array of strings: {e}"
+            ))
+        })?;
+        let c = Contract {
+            role,
+            task: m.task.to_string(),
+            horizon: m.horizon as usize,
+            state_dim: m.state_dim as usize,
+            action_dim: m.action_dim as usize,
+            fingers: m.fingers as usize,
+            diffusion_steps: m.diffusion_steps as usize,
+            beta_schedule: m.beta_schedule.to_string(),
+            prediction: m.prediction.to_string(),
+            norm_mean: weight(m.norm_mean)?,
+            norm_std: weight(m.norm_std)?,
+            columns,
+        };
+        c.check_task()?;
+        Ok(c)
+    }
+
     /// Refuse a model made for another task or role, naming the mismatch.
     pub fn expect(&self, expected: &Expectation) -> Result<()> {
         if let Some(role) = expected.role
@@ -338,38 +426,6 @@ pub fn validate(proto: &pb::ModelProto) -> Result<Contract> {
             columns.len()
         )));
     }
-    let layout = task_layout(&task).ok_or_else(|| {
-        contract_err(format!(
-            "dips.task {task:?} is not a known task ({})",
-            crate::tasks::KNOWN_TASKS.join(", ")
-        ))
-    })?;
-    if layout.horizon != horizon {
-        return Err(contract_err(format!(
-            "dips.horizon is {horizon}, task {task} has T = {}",
-            layout.horizon
-        )));
-    }
-    if layout.fingers != fingers {
-        return Err(contract_err(format!(
-            "dips.fingers is {fingers}, task {task} has {}",
-            layout.fingers
-        )));
-    }
-    if layout.state_columns.len() != state_dim || layout.action_columns.len() != action_dim {
-        return Err(contract_err(format!(
-            "dips.state_dim/action_dim are {state_dim}/{action_dim}, task {task} has {}/{}",
-            layout.state_columns.len(),
-            layout.action_columns.len()
-        )));
-    }
-    for (i, (got, want)) in columns.iter().zip(layout.columns()).enumerate() {
-        if *got != want {
-            return Err(contract_err(format!(
-                "dips.columns[{i}] is {got:?}, task {task} has {want:?}"
-            )));
-        }
-    }
     let contract = Contract {
         role,
         task,
@@ -384,6 +440,7 @@ pub fn validate(proto: &pb::ModelProto) -> Result<Contract> {
         norm_std,
         columns,
     };
+    contract.check_task()?;
     check_io(proto, &contract)?;
     Ok(contract)
 }

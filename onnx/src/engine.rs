@@ -107,11 +107,12 @@ pub enum AnyEngine {
 }
 
 impl AnyEngine {
-    /// Load and validate `file` (against `expected`) with the chosen engine.
+    /// Load and validate `file` (against `expected`) with the chosen engine; the kernel engine
+    /// also takes a lowered `.dipsm`.
     pub fn load(kind: EngineKind, file: &Path, expected: &Expectation) -> Result<Self> {
         Ok(match kind {
             EngineKind::Tract => AnyEngine::Tract(TractEngine::load(file, expected)?),
-            EngineKind::Kernel => AnyEngine::Kernel(KernelHostEngine::load_onnx(file, expected)?),
+            EngineKind::Kernel => AnyEngine::Kernel(KernelHostEngine::load(file, expected)?),
         })
     }
 

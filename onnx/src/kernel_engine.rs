@@ -25,6 +25,26 @@ impl KernelHostEngine {
         Self::from_lowered(lower_file(path, expected)?)
     }
 
+    /// Load a `.dipsm` blob (validated against `expected`).
+    pub fn load_blob(path: &Path, expected: &Expectation) -> Result<Self> {
+        let blob = std::fs::read(path).map_err(|source| ModelError::Io {
+            path: path.to_path_buf(),
+            source,
+        })?;
+        let contract = Contract::from_blob(&blob)?;
+        contract.expect(expected)?;
+        Self::new(contract, blob)
+    }
+
+    /// Load a model file: a `.dipsm` blob as it is, anything else as ONNX to lower.
+    pub fn load(path: &Path, expected: &Expectation) -> Result<Self> {
+        if path.extension().is_some_and(|e| e == "dipsm") {
+            Self::load_blob(path, expected)
+        } else {
+            Self::load_onnx(path, expected)
+        }
+    }
+
     /// Load a lowered model.
     pub fn from_lowered(l: LoweredModel) -> Result<Self> {
         Self::new(l.contract, l.blob)

@@ -75,6 +75,33 @@ fn no_std_kernel_engine_swaps_blobs_in_caller_memory() {
 }
 
 #[test]
+fn a_written_blob_carries_its_contract_and_is_refused_for_another_task() {
+    let lowered = lower_file(
+        &fixture("torch-screwdriver-legacy", "denoiser.onnx"),
+        &Expectation::default(),
+    )
+    .unwrap();
+    assert_eq!(
+        dips_onnx::Contract::from_blob(&lowered.blob).unwrap(),
+        lowered.contract
+    );
+    let dir = std::env::temp_dir().join(format!("dips-onnx-swap-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let path = dir.join("screwdriver-denoiser.dipsm");
+    lowered.write(&path).unwrap();
+    let mut e =
+        KernelHostEngine::load(&path, &Expectation::new(Role::Denoiser, "screwdriver")).unwrap();
+    let f = io("torch-screwdriver-legacy", "denoiser");
+    let (batch, ins, want) = tiled(e.contract(), &f, 1);
+    let mut out = vec![0.0; want.len()];
+    e.predict_eps(batch, &ins[0], &ins[1], &ins[2], &ins[3], &mut out)
+        .unwrap();
+    assert_agree(&out, &want, "kernel from .dipsm");
+    let err = KernelHostEngine::load(&path, &Expectation::new(Role::Denoiser, "card")).unwrap_err();
+    assert!(matches!(err, ModelError::Mismatch(_)), "{err}");
+}
+
+#[test]
 fn wrong_task_or_role_is_refused_with_the_mismatch_named() {
     let card = fixture("torch-card-dynamo", "denoiser.onnx");
     let want_screw = Expectation::new(Role::Denoiser, "screwdriver");
