@@ -10,6 +10,23 @@ use crate::error::{ModelError, Result};
 use crate::lower::{LoweredModel, lower_file};
 use crate::tract_engine::check_call;
 
+/// The most memory (floats) a host kernel engine allocates: 1 GiB. A blob or a batch asking for
+/// more is refused instead of aborting the process on a failed allocation.
+pub const MAX_MEMORY_FLOATS: usize = 1 << 28;
+
+fn memory(info: &ModelInfo, batch: usize) -> Result<Vec<f32>> {
+    match info.memory_len(batch) {
+        Some(len) if len <= MAX_MEMORY_FLOATS => Ok(vec![0.0; len]),
+        _ => Err(ModelError::BadInput {
+            name: "batch".into(),
+            reason: format!(
+                "batch {batch} needs more than {MAX_MEMORY_FLOATS} floats of kernel memory ({} per sample)",
+                info.arena_per_sample
+            ),
+        }),
+    }
+}
+
 /// A contract-v1 model run by the kernel interpreter.
 #[derive(Debug)]
 pub struct KernelHostEngine {
@@ -58,11 +75,7 @@ impl KernelHostEngine {
                 "the blob's metadata does not match the contract".into(),
             ));
         }
-        let mut mem = vec![
-            0.0;
-            info.memory_len(1)
-                .ok_or(ModelError::Kernel(dips_kernel::nn::NnError::BadLayout))?
-        ];
+        let mut mem = memory(&info, 1)?;
         install(&info, &blob, &mut mem)?;
         Ok(KernelHostEngine {
             contract,
@@ -86,11 +99,7 @@ impl KernelHostEngine {
     pub fn run(&mut self, batch: usize, inputs: &[&[f32]], output: &mut [f32]) -> Result<()> {
         check_call(&self.contract, batch, inputs, output)?;
         if batch > self.info.max_batch(self.mem.len()) {
-            let len = self.info.memory_len(batch).ok_or(ModelError::BadInput {
-                name: "batch".into(),
-                reason: format!("batch {batch} is too large"),
-            })?;
-            self.mem = vec![0.0; len];
+            self.mem = memory(&self.info, batch)?;
             install(&self.info, &self.blob, &mut self.mem)?;
         }
         run(&self.info, &self.blob, &mut self.mem, batch, inputs, output)?;

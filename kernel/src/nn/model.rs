@@ -550,3 +550,176 @@ pub fn run(
     output.copy_from_slice(arena.get(os..oe).ok_or(NnError::BadLayout)?);
     Ok(())
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::nn::format::{BLOB_VERSION, BinaryFn, Meta, UnaryFn};
+    use std::vec;
+    use std::vec::Vec;
+
+    fn enc<T: serde::Serialize>(v: &T) -> Vec<u8> {
+        let mut out = vec![0u8; 4096];
+        let n = postcard::to_slice(v, &mut out).unwrap().len();
+        out.truncate(n);
+        out
+    }
+
+    const fn buf(off: u32, len: u32) -> Buf {
+        Buf { off, len }
+    }
+
+    /// A hand-written discriminator: `p = σ(x·w + b + context)` with T = 2, D = 2, F = 1.
+    fn blob(ops: &[Op]) -> Vec<u8> {
+        let mut op_bytes = Vec::new();
+        for op in ops {
+            op_bytes.extend(enc(op));
+        }
+        let weights: Vec<f32> = vec![0.5, -1.0, 0.25, 2.0, 0.1, 0.0, 0.0, 1.0, 1.0];
+        let wbytes: Vec<u8> = weights.iter().flat_map(|w| w.to_le_bytes()).collect();
+        let body = Body {
+            meta: Meta {
+                contract: 1,
+                role: 1,
+                task: "test",
+                horizon: 2,
+                state_dim: 1,
+                action_dim: 1,
+                fingers: 1,
+                diffusion_steps: 0,
+                beta_schedule: "cosine",
+                prediction: "epsilon",
+                columns_json: "[\"a\",\"b\"]",
+                norm_mean: W { off: 5, len: 2 },
+                norm_std: W { off: 7, len: 2 },
+            },
+            inputs: [buf(0, 4), buf(4, 1), buf(0, 0), buf(0, 0)],
+            n_inputs: 2,
+            output: buf(7, 1),
+            arena_per_sample: 8,
+            temp_len: 0,
+            n_ops: ops.len() as u32,
+            ops: &op_bytes,
+            n_weights: weights.len() as u32,
+            weights: &wbytes,
+        };
+        let mut b = enc(&Header {
+            magic: MAGIC,
+            version: BLOB_VERSION,
+        });
+        b.extend(enc(&body));
+        let crc = CHECKSUM.checksum(&b);
+        b.extend(crc.to_le_bytes());
+        b
+    }
+
+    fn program() -> [Op; 3] {
+        [
+            Op::Gemm {
+                a: buf(0, 4),
+                y: buf(5, 1),
+                w: W { off: 0, len: 4 },
+                b: W { off: 4, len: 1 },
+                rows: 1,
+                k: 4,
+                n: 1,
+            },
+            Op::Binary {
+                a: Operand::Act(buf(5, 1)),
+                b: Operand::Act(buf(4, 1)),
+                y: buf(6, 1),
+                f: BinaryFn::Add,
+                dims: [1, 1, 1, 1],
+                sa: [0, 0, 0, 1],
+                sb: [0, 0, 0, 1],
+            },
+            Op::Unary {
+                x: buf(6, 1),
+                y: buf(7, 1),
+                f: UnaryFn::Sigmoid,
+            },
+        ]
+    }
+
+    #[test]
+    fn runs_a_hand_written_program_at_several_batches() {
+        let b = blob(&program());
+        let info = parse(&b).unwrap();
+        assert_eq!(
+            (info.n_ops, info.arena_per_sample, info.n_weights),
+            (3, 8, 9)
+        );
+        let mut mem = vec![0.0; info.memory_len(3).unwrap()];
+        assert_eq!(install(&info, &b, &mut mem).unwrap(), 3);
+        let x = [1.0, 2.0, 3.0, 4.0, -1.0, 0.0, 0.5, 0.25, 0.0, 0.0, 0.0, 0.0];
+        let ctx = [0.5, -0.5, 3.0];
+        let w = [0.5f32, -1.0, 0.25, 2.0];
+        let want: Vec<f32> = (0..3)
+            .map(|i| {
+                let z: f32 = (0..4).map(|j| x[i * 4 + j] * w[j]).sum::<f32>() + 0.1 + ctx[i];
+                1.0 / (1.0 + (-z).exp())
+            })
+            .collect();
+        let mut out = [0.0; 3];
+        run(&info, &b, &mut mem, 3, &[&x, &ctx], &mut out).unwrap();
+        for (g, w) in out.iter().zip(&want) {
+            assert!((g - w).abs() < 1e-6, "{g} vs {w}");
+        }
+        let mut one = [0.0; 1];
+        run(&info, &b, &mut mem, 1, &[&x[4..8], &ctx[1..2]], &mut one).unwrap();
+        assert!((one[0] - want[1]).abs() < 1e-6);
+        assert_eq!(
+            run(&info, &b, &mut mem, 4, &[&x, &ctx], &mut out),
+            Err(NnError::BadBatch { batch: 4, max: 3 })
+        );
+    }
+
+    #[test]
+    fn out_of_range_or_aliased_ops_are_refused_at_parse() {
+        let mut p = program();
+        p[2] = Op::Unary {
+            x: buf(6, 1),
+            y: buf(8, 1),
+            f: UnaryFn::Tanh,
+        };
+        assert_eq!(parse(&blob(&p)), Err(NnError::BadOp { index: 2 }));
+        let mut p = program();
+        p[0] = Op::Gemm {
+            a: buf(0, 4),
+            y: buf(5, 1),
+            w: W { off: 6, len: 4 },
+            b: W { off: 4, len: 1 },
+            rows: 1,
+            k: 4,
+            n: 1,
+        };
+        assert_eq!(parse(&blob(&p)), Err(NnError::BadOp { index: 0 }));
+        let mut p = program();
+        p[2] = Op::Unary {
+            x: buf(6, 1),
+            y: buf(6, 1),
+            f: UnaryFn::Tanh,
+        };
+        assert_eq!(parse(&blob(&p)), Err(NnError::BadOp { index: 2 }));
+        // Inconsistent sizes inside an op pass the reference checks but fail when run.
+        let mut p = program();
+        p[0] = Op::Gemm {
+            a: buf(0, 4),
+            y: buf(5, 1),
+            w: W { off: 0, len: 4 },
+            b: W { off: 4, len: 1 },
+            rows: 1,
+            k: 3,
+            n: 1,
+        };
+        let b = blob(&p);
+        let info = parse(&b).unwrap();
+        let mut mem = vec![0.0; info.memory_len(1).unwrap()];
+        install(&info, &b, &mut mem).unwrap();
+        let mut out = [0.0];
+        assert_eq!(
+            run(&info, &b, &mut mem, 1, &[&[0.0; 4], &[0.0]], &mut out),
+            Err(NnError::BadOp { index: 0 })
+        );
+    }
+}
