@@ -76,7 +76,7 @@ pub fn apply_unary(f: UnaryFn, x: f32) -> f32 {
         UnaryFn::Sigmoid => sigmoid(x),
         UnaryFn::Sin => libm::sinf(x),
         UnaryFn::Cos => libm::cosf(x),
-        UnaryFn::Exp => exp_fast(x),
+        UnaryFn::Exp => libm::expf(x),
         UnaryFn::Relu => x.max(0.0),
         UnaryFn::Neg => -x,
         UnaryFn::Sqrt => libm::sqrtf(x),
