@@ -2,8 +2,8 @@
 
 use tract_onnx::pb;
 
+use super::attrs::{Attrs, broadcast_dims, norm_axis};
 use super::copyplan::{apply_const, pad_plan, slice_plan, strides, transpose_plan};
-use super::emit::{Attrs, broadcast_dims, norm_axis};
 use super::tensors::{Const, decode_tensor};
 
 /// Why a constant node could not be folded.

@@ -1,8 +1,12 @@
-//! Op fusion on the emitted program: the exporters' GroupNorm idiom
+//! Fusions. On the ONNX graph: `Mul(a, Tanh(Softplus(a)))` → `Mish(a)`. On the emitted
+//! program: the exporters' GroupNorm idiom
 //! `InstanceNorm(groups) → Mul(γ per channel) → Add(β per channel) [→ Mish]` becomes one
 //! [`Op::GroupNorm`], which reads and writes the activation once instead of three or four times.
 
+use std::collections::HashMap;
+
 use dips_kernel::nn::format::{BinaryFn, Op, Operand, UnaryFn, W};
+use tract_onnx::pb;
 
 use super::emit::Program;
 use super::plan::{reads, writes};
@@ -198,4 +202,63 @@ pub(super) fn compact_weights(p: &mut Program) {
         }
     }
     p.weights = out;
+}
+
+/// Rewrite exporter idioms into single ops: `Mul(a, Tanh(Softplus(a)))` → `Mish(a)`.
+pub(super) fn fuse_patterns(nodes: &[pb::NodeProto]) -> Vec<pb::NodeProto> {
+    let mut producer: HashMap<&str, usize> = HashMap::new();
+    let mut uses: HashMap<&str, usize> = HashMap::new();
+    for (i, n) in nodes.iter().enumerate() {
+        for o in &n.output {
+            producer.insert(o, i);
+        }
+        for x in &n.input {
+            *uses.entry(x).or_default() += 1;
+        }
+    }
+    let mut drop = vec![false; nodes.len()];
+    let mut out: Vec<pb::NodeProto> = nodes.to_vec();
+    for (i, n) in nodes.iter().enumerate() {
+        if n.op_type != "Mul" || n.input.len() != 2 {
+            continue;
+        }
+        for (a, b) in [(0, 1), (1, 0)] {
+            let (a, b) = (&n.input[a], &n.input[b]);
+            let Some(&ti) = producer.get(b.as_str()) else {
+                continue;
+            };
+            let tanh = &nodes[ti];
+            if tanh.op_type != "Tanh" || uses.get(b.as_str()) != Some(&1) {
+                continue;
+            }
+            let Some(tin) = tanh.input.first() else {
+                continue;
+            };
+            let Some(&si) = producer.get(tin.as_str()) else {
+                continue;
+            };
+            let sp = &nodes[si];
+            if sp.op_type != "Softplus"
+                || uses.get(tin.as_str()) != Some(&1)
+                || sp.input.first() != Some(a)
+            {
+                continue;
+            }
+            drop[ti] = true;
+            drop[si] = true;
+            out[i] = pb::NodeProto {
+                op_type: "Mish".into(),
+                input: vec![a.clone()],
+                output: n.output.clone(),
+                name: n.name.clone(),
+                ..Default::default()
+            };
+            break;
+        }
+    }
+    out.into_iter()
+        .zip(drop)
+        .filter(|(_, d)| !d)
+        .map(|(n, _)| n)
+        .collect()
 }

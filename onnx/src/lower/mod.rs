@@ -14,6 +14,7 @@
 //! requires identical programs, which proves the program is independent of the batch: the
 //! kernel then runs any batch up to what the caller's memory holds.
 
+mod attrs;
 pub mod copyplan;
 mod emit;
 mod fold;
@@ -58,7 +59,7 @@ fn lower_with_contract(proto: &pb::ModelProto, contract: Contract) -> Result<Low
         .graph
         .as_ref()
         .ok_or_else(|| ModelError::Protobuf("no graph".into()))?;
-    let nodes = emit::fuse_patterns(&graph.node);
+    let nodes = fuse::fuse_patterns(&graph.node);
     let mut a = emit::Builder::build(graph, &nodes, &contract, opset, PROBE_BATCHES[0])?;
     let mut b = emit::Builder::build(graph, &nodes, &contract, opset, PROBE_BATCHES[1])?;
     for p in [&mut a, &mut b] {
