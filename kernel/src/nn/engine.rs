@@ -34,9 +34,7 @@ impl<'b, 'm> KernelEngine<'b, 'm> {
     }
 
     fn weights(&self, w: super::format::W) -> &[f32] {
-        self.mem
-            .get(w.off as usize..(w.off + w.len) as usize)
-            .unwrap_or(&[])
+        super::model::weight_slice(self.mem, &w).unwrap_or(&[])
     }
 
     fn norm(&self) -> Normalization<'_> {

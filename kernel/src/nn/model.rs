@@ -263,9 +263,11 @@ pub fn install(info: &ModelInfo, blob: &[u8], mem: &mut [f32]) -> Result<usize, 
     Ok(info.max_batch(mem.len()))
 }
 
+/// The arena range of `batch` samples of a value (saturating: an out-of-range value from a
+/// blob that was not the parsed one yields a range the checked slicing then refuses).
 fn region(b: &Buf, mb: usize, batch: usize) -> (usize, usize) {
-    let s = b.off as usize * mb;
-    (s, s + b.len as usize * batch)
+    let s = (b.off as usize).saturating_mul(mb);
+    (s, s.saturating_add((b.len as usize).saturating_mul(batch)))
 }
 
 /// Split the arena into a read-only source and the destination region.
@@ -296,7 +298,7 @@ fn split2<'a>(
     let (left, right) = (&*left, &*right);
     let pick = |o: Operand| -> Option<&'a [f32]> {
         match o {
-            Operand::Weight(w) => weights.get(w.off as usize..w.off as usize + w.len as usize),
+            Operand::Weight(w) => weight_slice(weights, &w),
             Operand::Act(buf) => {
                 let (s, e) = region(&buf, mb, batch);
                 if e <= y.0 {
@@ -312,7 +314,8 @@ fn split2<'a>(
     Some(([pick(a)?, pick(b)?], mid))
 }
 
-fn wslice<'a>(weights: &'a [f32], w: &W) -> Option<&'a [f32]> {
+/// The floats of weight range `w`, or `None` when it lies outside `weights`.
+pub fn weight_slice<'a>(weights: &'a [f32], w: &W) -> Option<&'a [f32]> {
     weights.get(w.off as usize..(w.off as usize).checked_add(w.len as usize)?)
 }
 
@@ -336,7 +339,7 @@ fn exec(
     match op {
         Op::Conv1d { x, y, w, b, g } | Op::ConvTranspose1d { x, y, w, b, g } => {
             let (src, dst) = split(arena, r(x), r(y))?;
-            let (w, b) = (wslice(weights, w)?, wslice(weights, b)?);
+            let (w, b) = (weight_slice(weights, w)?, weight_slice(weights, b)?);
             let (xl, yl) = (x.len as usize, y.len as usize);
             for i in 0..batch {
                 let xs = src.get(i * xl..(i + 1) * xl)?;
@@ -359,7 +362,7 @@ fn exec(
             ..
         } => {
             let (src, dst) = split(arena, r(x), r(y))?;
-            let (sc, bi) = (wslice(weights, scale)?, wslice(weights, bias)?);
+            let (sc, bi) = (weight_slice(weights, scale)?, weight_slice(weights, bias)?);
             let l = x.len as usize;
             for i in 0..batch {
                 let xs = src.get(i * l..(i + 1) * l)?;
@@ -379,7 +382,7 @@ fn exec(
             ..
         } => {
             let (src, dst) = split(arena, r(x), r(y))?;
-            let (ga, be) = (wslice(weights, gamma)?, wslice(weights, beta)?);
+            let (ga, be) = (weight_slice(weights, gamma)?, weight_slice(weights, beta)?);
             let l = x.len as usize;
             for i in 0..batch {
                 let xs = src.get(i * l..(i + 1) * l)?;
@@ -432,8 +435,8 @@ fn exec(
             let (src, dst) = split(arena, r(a), r(y))?;
             ops::gemm::gemm(
                 src,
-                wslice(weights, w)?,
-                wslice(weights, b)?,
+                weight_slice(weights, w)?,
+                weight_slice(weights, b)?,
                 dst,
                 *k as usize,
                 *n as usize,
