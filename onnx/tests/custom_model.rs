@@ -31,6 +31,22 @@ fn custom_architecture_matches_onnxruntime_on_both_engines() {
 }
 
 #[test]
+fn group_normalization_op_matches_onnxruntime_on_both_engines() {
+    let io = TensorFile::read(&data("groupnorm21_card.io.json")).unwrap();
+    for engine in ["tract", "kernel"] {
+        let mut e = load_engine(engine, &data("groupnorm21_card.onnx"));
+        let c = e.contract().clone();
+        for reps in [1, 32] {
+            let (batch, ins, want) = tiled(&c, &io, reps);
+            let refs: Vec<&[f32]> = ins.iter().map(Vec::as_slice).collect();
+            let mut out = vec![0.0; want.len()];
+            e.run(batch, &refs, &mut out).unwrap();
+            assert_agree(&out, &want, &format!("{engine} GroupNormalization batch {batch}"));
+        }
+    }
+}
+
+#[test]
 fn kernel_runs_smaller_batches_than_its_memory_holds() {
     let io = TensorFile::read(&data("custom_card.io.json")).unwrap();
     let mut e = load_engine("kernel", &data("custom_card.onnx"));
