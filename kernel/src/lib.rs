@@ -18,6 +18,7 @@ pub mod budget;
 pub mod diffusion;
 pub mod engine;
 pub mod mode;
+pub mod nn;
 pub mod prior;
 pub mod rng;
 pub mod search;

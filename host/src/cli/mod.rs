@@ -1,8 +1,10 @@
 //! The `dips` command line (`CONTRACTS.md` §5). Each command group lives in its own module.
 
-pub mod bench;
-
 use clap::{Parser, Subcommand};
+
+pub mod bench;
+pub mod bench_inference;
+pub mod model;
 
 /// DIPS: diffusion-informed probabilistic contact search for multi-finger manipulation.
 #[derive(Debug, Parser)]
@@ -16,6 +18,8 @@ pub struct Cli {
 /// Top-level commands.
 #[derive(Debug, Subcommand)]
 pub enum Command {
+    /// Validate, run and lower contract-v1 models.
+    Model(model::ModelArgs),
     /// Benchmarks that print JSON figures.
     Bench(bench::BenchArgs),
 }
@@ -24,6 +28,7 @@ pub enum Command {
 pub fn main() -> anyhow::Result<()> {
     let cli = Cli::parse();
     match cli.command {
+        Command::Model(args) => model::run(args),
         Command::Bench(args) => bench::run(args),
     }
 }
