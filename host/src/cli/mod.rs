@@ -1,10 +1,12 @@
 //! The `dips` command line (`CONTRACTS.md` §5). Each command group lives in its own module.
 
-pub mod bench;
-pub mod bench_sim;
-pub mod sim;
-
 use clap::{Parser, Subcommand};
+
+pub mod bench;
+pub mod bench_inference;
+pub mod bench_sim;
+pub mod model;
+pub mod sim;
 
 /// DIPS: diffusion-informed probabilistic contact search for multi-finger manipulation.
 #[derive(Debug, Parser)]
@@ -18,6 +20,8 @@ pub struct Cli {
 /// Top-level commands.
 #[derive(Debug, Subcommand)]
 pub enum Command {
+    /// Validate, run and lower contract-v1 models.
+    Model(model::ModelArgs),
     /// Benchmarks that print JSON figures.
     Bench(bench::BenchArgs),
     /// Quasi-static test world: run actions, draw scenes and trajectories.
@@ -28,6 +32,7 @@ pub enum Command {
 pub fn main() -> anyhow::Result<()> {
     let cli = Cli::parse();
     match cli.command {
+        Command::Model(args) => model::run(args),
         Command::Bench(args) => bench::run(args),
         Command::Sim(args) => sim::main(args),
     }
