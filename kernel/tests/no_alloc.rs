@@ -2,6 +2,7 @@
 //! the allocations of the planning thread while `plan` runs.
 #![allow(unsafe_code)]
 
+mod alloc_count;
 mod common;
 
 use common::{NoisyScrewdriver, SmoothScorer, screwdriver_start};
@@ -10,49 +11,8 @@ use dips_kernel::mode::{ModeId, Task};
 use dips_kernel::prior::MarkovPrior;
 use dips_kernel::search::{Problem, SearchConfig, SearchStatus, SearchVariant};
 use dips_kernel::task::ScrewdriverObjective;
-use std::alloc::{GlobalAlloc, Layout, System};
-use std::cell::Cell;
-
-struct Counting;
-
-thread_local! {
-    static ARMED: Cell<bool> = const { Cell::new(false) };
-    static COUNT: Cell<usize> = const { Cell::new(0) };
-}
-
-fn note() {
-    let armed = ARMED.try_with(Cell::get).unwrap_or(false);
-    if armed {
-        let _ = COUNT.try_with(|c| c.set(c.get() + 1));
-    }
-}
-
-// SAFETY: forwards every call to the system allocator unchanged; the counters are
-// const-initialised thread-locals without destructors, so touching them never allocates.
-unsafe impl GlobalAlloc for Counting {
-    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
-        note();
-        // SAFETY: same contract as the caller's.
-        unsafe { System.alloc(layout) }
-    }
-    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
-        // SAFETY: same contract as the caller's.
-        unsafe { System.dealloc(ptr, layout) }
-    }
-    unsafe fn alloc_zeroed(&self, layout: Layout) -> *mut u8 {
-        note();
-        // SAFETY: same contract as the caller's.
-        unsafe { System.alloc_zeroed(layout) }
-    }
-    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
-        note();
-        // SAFETY: same contract as the caller's.
-        unsafe { System.realloc(ptr, layout, new_size) }
-    }
-}
-
 #[global_allocator]
-static GLOBAL: Counting = Counting;
+static GLOBAL: alloc_count::Counting = alloc_count::Counting;
 
 #[test]
 fn planning_calls_do_not_allocate() {
@@ -68,12 +28,10 @@ fn planning_calls_do_not_allocate() {
     let mut scorer = SmoothScorer;
 
     // The counter works: a Vec allocation is seen.
-    ARMED.with(|a| a.set(true));
-    let v = vec![1u8; 16];
-    ARMED.with(|a| a.set(false));
+    let v = alloc_count::armed(|| vec![1u8; 16]);
     drop(v);
-    assert_eq!(COUNT.with(Cell::get), 1);
-    COUNT.with(|c| c.set(0));
+    assert_eq!(alloc_count::count(), 1);
+    alloc_count::reset();
 
     let mut expanded = 0;
     for (variant, executed, budget) in [
@@ -93,20 +51,20 @@ fn planning_calls_do_not_allocate() {
             executed,
             prior: &prior,
         };
-        ARMED.with(|a| a.set(true));
-        let report = planner.plan(
-            &config,
-            &problem,
-            &mut sampler,
-            &mut scorer,
-            &objective,
-            &mut NoClock,
-        );
-        ARMED.with(|a| a.set(false));
+        let report = alloc_count::armed(|| {
+            planner.plan(
+                &config,
+                &problem,
+                &mut sampler,
+                &mut scorer,
+                &objective,
+                &mut NoClock,
+            )
+        });
         assert!(report.status.has_plan(), "{:?}", report.status);
         assert_ne!(report.status, SearchStatus::InvalidProblem);
         expanded += report.stats.nodes_expanded;
     }
     assert!(expanded >= 3);
-    assert_eq!(COUNT.with(Cell::get), 0, "heap allocations during planning");
+    assert_eq!(alloc_count::count(), 0, "heap allocations during planning");
 }

@@ -3,9 +3,11 @@
 //! counting global allocator counts the planning thread's allocations while they run.
 #![allow(unsafe_code)]
 
+mod alloc_count;
 mod common;
 mod engines;
 
+use alloc_count::armed;
 use common::screwdriver_start;
 use dips_kernel::adapters::{
     DiffusionSegmentSampler, DiscriminatorScorer, SamplerAdapterLayout, ScorerAdapterLayout,
@@ -19,63 +21,16 @@ use dips_kernel::task::ScrewdriverObjective;
 use dips_kernel::wire_convert::plan_request;
 use dips_wire::{PlanRequest, PlanStatus, SearchSettings};
 use engines::{GaussianDenoiser, LogisticDiscriminator};
-use std::alloc::{GlobalAlloc, Layout, System};
-use std::cell::Cell;
-
-struct Counting;
-
-thread_local! {
-    static ARMED: Cell<bool> = const { Cell::new(false) };
-    static COUNT: Cell<usize> = const { Cell::new(0) };
-}
-
-fn note() {
-    if ARMED.try_with(Cell::get).unwrap_or(false) {
-        let _ = COUNT.try_with(|c| c.set(c.get() + 1));
-    }
-}
-
-// SAFETY: forwards every call to the system allocator unchanged; the counters are
-// const-initialised thread-locals without destructors, so touching them never allocates.
-unsafe impl GlobalAlloc for Counting {
-    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
-        note();
-        // SAFETY: same contract as the caller's.
-        unsafe { System.alloc(layout) }
-    }
-    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
-        // SAFETY: same contract as the caller's.
-        unsafe { System.dealloc(ptr, layout) }
-    }
-    unsafe fn alloc_zeroed(&self, layout: Layout) -> *mut u8 {
-        note();
-        // SAFETY: same contract as the caller's.
-        unsafe { System.alloc_zeroed(layout) }
-    }
-    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
-        note();
-        // SAFETY: same contract as the caller's.
-        unsafe { System.realloc(ptr, layout, new_size) }
-    }
-}
-
 #[global_allocator]
-static GLOBAL: Counting = Counting;
-
-fn armed<T>(f: impl FnOnce() -> T) -> T {
-    ARMED.with(|a| a.set(true));
-    let out = f();
-    ARMED.with(|a| a.set(false));
-    out
-}
+static GLOBAL: alloc_count::Counting = alloc_count::Counting;
 
 #[test]
 fn planning_through_the_model_adapters_does_not_allocate() {
     // The counter works.
     let v = armed(|| vec![1u8; 8]);
     drop(v);
-    assert_eq!(COUNT.with(Cell::get), 1);
-    COUNT.with(|c| c.set(0));
+    assert_eq!(alloc_count::count(), 1);
+    alloc_count::reset();
 
     let mut denoiser = GaussianDenoiser::new(Task::Screwdriver, 16);
     let mut disc = LogisticDiscriminator::new(Task::Screwdriver);
@@ -147,5 +102,5 @@ fn planning_through_the_model_adapters_does_not_allocate() {
     .unwrap();
     assert_eq!(reply.status, PlanStatus::Found);
     assert!(reply.stats.nodes_expanded >= 2);
-    assert_eq!(COUNT.with(Cell::get), 0, "heap allocations while planning");
+    assert_eq!(alloc_count::count(), 0, "heap allocations while planning");
 }
