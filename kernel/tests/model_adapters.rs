@@ -11,7 +11,7 @@ use dips_kernel::diffusion::{
     SampleRequest, SamplerConfig, SamplerError, SamplerScratch, SamplingMethod, ScratchBuffer,
     ScratchLayout, sample,
 };
-use dips_kernel::engine::DenoiserEngine;
+use dips_kernel::engine::{DenoiserEngine, DiscriminatorEngine};
 use dips_kernel::mode::{ContactMode, ModeId, SegmentDims, Task};
 use dips_kernel::prior::MarkovPrior;
 use dips_kernel::rng::KernelRng;
@@ -60,6 +60,22 @@ fn buffers(denoiser: &GaussianDenoiser, max_segments: usize, chunk: usize) -> Bu
     }
 }
 
+impl Buffers {
+    /// The sampler over `denoiser` and the scorer over `disc`, carved out of these buffers.
+    fn adapters<D: DenoiserEngine, S: DiscriminatorEngine>(
+        &mut self,
+        denoiser: D,
+        disc: S,
+        config: SamplerConfig,
+    ) -> (DiffusionSegmentSampler<'_, D>, DiscriminatorScorer<'_, S>) {
+        let sampler =
+            DiffusionSegmentSampler::new(denoiser, config, &mut self.sampler, &self.sampler_layout)
+                .unwrap();
+        let scorer = DiscriminatorScorer::new(disc, &mut self.scorer, &self.scorer_layout).unwrap();
+        (sampler, scorer)
+    }
+}
+
 fn plan_screwdriver(
     config: &SearchConfig,
     sampler_config: SamplerConfig,
@@ -80,15 +96,7 @@ fn plan_screwdriver(
         prior: &prior,
     };
     let report = {
-        let mut sampler = DiffusionSegmentSampler::new(
-            &mut denoiser,
-            sampler_config,
-            &mut b.sampler,
-            &b.sampler_layout,
-        )
-        .unwrap();
-        let mut scorer =
-            DiscriminatorScorer::new(&mut disc, &mut b.scorer, &b.scorer_layout).unwrap();
+        let (mut sampler, mut scorer) = b.adapters(&mut denoiser, &mut disc, sampler_config);
         planner.plan(
             config,
             &problem,
@@ -233,15 +241,8 @@ fn mismatched_models_and_calls_get_typed_errors() {
     let mut card_denoiser = GaussianDenoiser::new(Task::Card, STEPS);
     let mut card_disc = LogisticDiscriminator::new(Task::Card);
     let mut b = buffers(&card_denoiser, 64, 4);
-    let mut sampler = DiffusionSegmentSampler::new(
-        &mut card_denoiser,
-        SamplerConfig::default(),
-        &mut b.sampler,
-        &b.sampler_layout,
-    )
-    .unwrap();
-    let mut scorer =
-        DiscriminatorScorer::new(&mut card_disc, &mut b.scorer, &b.scorer_layout).unwrap();
+    let (mut sampler, mut scorer) =
+        b.adapters(&mut card_denoiser, &mut card_disc, SamplerConfig::default());
     let horizon = DimsMismatch {
         field: DimField::Horizon,
         model: 9,
@@ -400,14 +401,7 @@ fn a_planner_refuses_models_of_another_task() {
     let mut denoiser = GaussianDenoiser::new(Task::Card, STEPS);
     let mut disc = LogisticDiscriminator::new(Task::Screwdriver);
     let mut b = buffers(&denoiser, 48, 8);
-    let mut sampler = DiffusionSegmentSampler::new(
-        &mut denoiser,
-        SamplerConfig::default(),
-        &mut b.sampler,
-        &b.sampler_layout,
-    )
-    .unwrap();
-    let mut scorer = DiscriminatorScorer::new(&mut disc, &mut b.scorer, &b.scorer_layout).unwrap();
+    let (mut sampler, mut scorer) = b.adapters(&mut denoiser, &mut disc, SamplerConfig::default());
     let mut planner = common::boxed_planner::<16, 512, 256, 481>();
     let prior = paper_prior();
     let start = screwdriver_start(0.0);
