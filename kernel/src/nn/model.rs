@@ -679,43 +679,37 @@ mod tests {
 
     #[test]
     fn out_of_range_or_aliased_ops_are_refused_at_parse() {
-        let mut p = program();
-        p[2] = Op::Unary {
-            x: buf(6, 1),
-            y: buf(8, 1),
+        // The test program with op `index` replaced.
+        let with = |index: usize, op: Op| {
+            let mut p = program();
+            p[index] = op;
+            blob(&p)
+        };
+        let tanh = |x, y| Op::Unary {
+            x,
+            y,
             f: UnaryFn::Tanh,
         };
-        assert_eq!(parse(&blob(&p)), Err(NnError::BadOp { index: 2 }));
-        let mut p = program();
-        p[0] = Op::Gemm {
+        let gemm = |w_off, k| Op::Gemm {
             a: buf(0, 4),
             y: buf(5, 1),
-            w: W { off: 6, len: 4 },
+            w: W { off: w_off, len: 4 },
             b: W { off: 4, len: 1 },
             rows: 1,
-            k: 4,
+            k,
             n: 1,
         };
-        assert_eq!(parse(&blob(&p)), Err(NnError::BadOp { index: 0 }));
-        let mut p = program();
-        p[2] = Op::Unary {
-            x: buf(6, 1),
-            y: buf(6, 1),
-            f: UnaryFn::Tanh,
-        };
-        assert_eq!(parse(&blob(&p)), Err(NnError::BadOp { index: 2 }));
+        let out_of_range = with(2, tanh(buf(6, 1), buf(8, 1)));
+        assert_eq!(parse(&out_of_range), Err(NnError::BadOp { index: 2 }));
+        let weights_out_of_range = with(0, gemm(6, 4));
+        assert_eq!(
+            parse(&weights_out_of_range),
+            Err(NnError::BadOp { index: 0 })
+        );
+        let aliased = with(2, tanh(buf(6, 1), buf(6, 1)));
+        assert_eq!(parse(&aliased), Err(NnError::BadOp { index: 2 }));
         // Inconsistent sizes inside an op pass the reference checks but fail when run.
-        let mut p = program();
-        p[0] = Op::Gemm {
-            a: buf(0, 4),
-            y: buf(5, 1),
-            w: W { off: 0, len: 4 },
-            b: W { off: 4, len: 1 },
-            rows: 1,
-            k: 3,
-            n: 1,
-        };
-        let b = blob(&p);
+        let b = with(0, gemm(0, 3));
         let info = parse(&b).unwrap();
         let mut mem = vec![0.0; info.memory_len(1).unwrap()];
         install(&info, &b, &mut mem).unwrap();
