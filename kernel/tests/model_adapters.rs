@@ -4,7 +4,7 @@
 mod common;
 mod engines;
 
-use common::screwdriver_start;
+use common::{paper_prior, screwdriver_problem, screwdriver_start};
 use dips_kernel::adapters::*;
 use dips_kernel::budget::NoClock;
 use dips_kernel::diffusion::{
@@ -13,7 +13,6 @@ use dips_kernel::diffusion::{
 };
 use dips_kernel::engine::{DenoiserEngine, DiscriminatorEngine};
 use dips_kernel::mode::{ContactMode, ModeId, SegmentDims, Task};
-use dips_kernel::prior::MarkovPrior;
 use dips_kernel::rng::KernelRng;
 use dips_kernel::search::TaskObjective;
 use dips_kernel::search::{
@@ -24,14 +23,6 @@ use dips_kernel::task::ScrewdriverObjective;
 use engines::{GaussianDenoiser, LogisticDiscriminator, TURN};
 
 const STEPS: usize = 16;
-
-fn paper_prior() -> MarkovPrior {
-    MarkovPrior::from_rows(
-        &[0.8, 0.1, 0.1],
-        &[&[0.1, 0.45, 0.45], &[0.45, 0.1, 0.45], &[0.45, 0.45, 0.1]],
-    )
-    .unwrap()
-}
 
 fn mode(task: Task, name: &str) -> ContactMode {
     task.contact_mode(task.mode_by_name(name).unwrap()).unwrap()
@@ -88,13 +79,7 @@ fn plan_screwdriver(
     let prior = paper_prior();
     let start = screwdriver_start(0.3);
     let objective = ScrewdriverObjective::from_state(&start).unwrap();
-    let problem = Problem {
-        task: Task::Screwdriver,
-        dims: Task::Screwdriver.dims(),
-        start: &start,
-        executed: None,
-        prior: &prior,
-    };
+    let problem = screwdriver_problem(&start, None, &prior);
     let report = {
         let (mut sampler, mut scorer) = b.adapters(&mut denoiser, &mut disc, sampler_config);
         planner.plan(
@@ -407,13 +392,7 @@ fn a_planner_refuses_models_of_another_task() {
     let start = screwdriver_start(0.0);
     let report = planner.plan(
         &SearchConfig::default(),
-        &Problem {
-            task: Task::Screwdriver,
-            dims: Task::Screwdriver.dims(),
-            start: &start,
-            executed: None,
-            prior: &prior,
-        },
+        &screwdriver_problem(&start, None, &prior),
         &mut sampler,
         &mut scorer,
         &ScrewdriverObjective::from_state(&start).unwrap(),

@@ -5,11 +5,10 @@
 mod alloc_count;
 mod common;
 
-use common::{NoisyScrewdriver, SmoothScorer, screwdriver_start};
+use common::{NoisyScrewdriver, SmoothScorer, paper_prior, screwdriver_problem, screwdriver_start};
 use dips_kernel::budget::NoClock;
-use dips_kernel::mode::{ModeId, Task};
-use dips_kernel::prior::MarkovPrior;
-use dips_kernel::search::{Problem, SearchConfig, SearchStatus, SearchVariant};
+use dips_kernel::mode::ModeId;
+use dips_kernel::search::{SearchConfig, SearchStatus, SearchVariant};
 use dips_kernel::task::ScrewdriverObjective;
 #[global_allocator]
 static GLOBAL: alloc_count::Counting = alloc_count::Counting;
@@ -17,11 +16,7 @@ static GLOBAL: alloc_count::Counting = alloc_count::Counting;
 #[test]
 fn planning_calls_do_not_allocate() {
     let mut planner = common::boxed_planner::<16, 512, 256, 481>();
-    let prior = MarkovPrior::from_rows(
-        &[0.8, 0.1, 0.1],
-        &[&[0.1, 0.45, 0.45], &[0.45, 0.1, 0.45], &[0.45, 0.45, 0.1]],
-    )
-    .unwrap();
+    let prior = paper_prior();
     let start = screwdriver_start(0.0);
     let objective = ScrewdriverObjective::from_state(&start).unwrap();
     let mut sampler = NoisyScrewdriver { noise: 0.2 };
@@ -44,13 +39,7 @@ fn planning_calls_do_not_allocate() {
             node_budget: budget,
             ..SearchConfig::default()
         };
-        let problem = Problem {
-            task: Task::Screwdriver,
-            dims: Task::Screwdriver.dims(),
-            start: &start,
-            executed,
-            prior: &prior,
-        };
+        let problem = screwdriver_problem(&start, executed, &prior);
         let report = alloc_count::armed(|| {
             planner.plan(
                 &config,

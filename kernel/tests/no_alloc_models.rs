@@ -8,15 +8,14 @@ mod common;
 mod engines;
 
 use alloc_count::armed;
-use common::screwdriver_start;
+use common::{paper_prior, screwdriver_problem, screwdriver_start};
 use dips_kernel::adapters::{
     DiffusionSegmentSampler, DiscriminatorScorer, SamplerAdapterLayout, ScorerAdapterLayout,
 };
 use dips_kernel::budget::NoClock;
 use dips_kernel::diffusion::SamplerConfig;
 use dips_kernel::mode::Task;
-use dips_kernel::prior::MarkovPrior;
-use dips_kernel::search::{Problem, SearchConfig, SearchStatus};
+use dips_kernel::search::{SearchConfig, SearchStatus};
 use dips_kernel::task::ScrewdriverObjective;
 use dips_kernel::wire_convert::plan_request;
 use dips_wire::{PlanRequest, PlanStatus, SearchSettings};
@@ -39,11 +38,7 @@ fn planning_through_the_model_adapters_does_not_allocate() {
     let mut sampler_buf = vec![0.0f32; sampler_layout.total()];
     let mut scorer_buf = vec![0.0f32; scorer_layout.total()];
     let mut planner = common::boxed_planner::<16, 512, 256, 481>();
-    let prior = MarkovPrior::from_rows(
-        &[0.8, 0.1, 0.1],
-        &[&[0.1, 0.45, 0.45], &[0.45, 0.1, 0.45], &[0.45, 0.45, 0.1]],
-    )
-    .unwrap();
+    let prior = paper_prior();
     let start = screwdriver_start(-0.2);
     let objective = ScrewdriverObjective::from_state(&start).unwrap();
     let request = PlanRequest {
@@ -74,13 +69,7 @@ fn planning_through_the_model_adapters_does_not_allocate() {
     let report = armed(|| {
         planner.plan(
             &SearchConfig::default(),
-            &Problem {
-                task: Task::Screwdriver,
-                dims: Task::Screwdriver.dims(),
-                start: &start,
-                executed: None,
-                prior: &prior,
-            },
+            &screwdriver_problem(&start, None, &prior),
             &mut sampler,
             &mut scorer,
             &objective,
