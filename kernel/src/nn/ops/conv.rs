@@ -270,7 +270,7 @@ mod tests {
 
     /// The geometry of a test case (`cout_padded` from [`padded_channels`]).
     #[allow(clippy::too_many_arguments)]
-    fn geom(
+    fn case_geom(
         cin: usize,
         cout: usize,
         lin: usize,
@@ -381,7 +381,7 @@ mod tests {
             let b = rand_vec(cout, 200 + seed as u64);
             let (want, lout) = naive_conv(&x, &w, &b, cin, cout, lin, k, s, d, pb, pe);
             let coutp = padded_channels(cout);
-            let g = geom(cin, cout, lin, lout, k, s, d, pb);
+            let g = case_geom(cin, cout, lin, lout, k, s, d, pb);
             let mut wp = vec![0.0; cin * k * coutp];
             pack_conv_kernel(&w, cout, cin, k, coutp, &mut wp).unwrap();
             let mut bp = b.clone();
@@ -408,7 +408,7 @@ mod tests {
             let b = rand_vec(cout, 20 + seed as u64);
             let (want, lout) = naive_convt(&x, &w, &b, cin, cout, lin, k, s, d, pb, pe);
             let coutp = padded_channels(cout);
-            let g = geom(cin, cout, lin, lout, k, s, d, pb);
+            let g = case_geom(cin, cout, lin, lout, k, s, d, pb);
             let mut wp = vec![0.0; cin * k * coutp];
             pack_conv_transpose_kernel(&w, cin, cout, k, coutp, &mut wp).unwrap();
             let mut bp = b.clone();
