@@ -75,6 +75,8 @@ pub trait DenoiserEngine {
 }
 
 /// A discriminator Ψ (contract role `discriminator`).
+// `dims`, `normalization` and `max_batch` repeat `DenoiserEngine`'s on purpose: each trait is
+// complete on its own, so an engine that loads either role implements both independently.
 pub trait DiscriminatorEngine {
     /// The engine's error type.
     type Error: core::fmt::Debug;
