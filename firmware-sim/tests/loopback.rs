@@ -1,16 +1,12 @@
 //! The firmware served in-process over byte buffers: bytes in, bytes out.
 
+mod common;
+
 use std::io::Read;
 
+use common::frame_bytes;
 use dips_firmware_sim::{Firmware, ServeStats, serve};
 use dips_wire::*;
-
-fn frame_bytes(request_id: u32, body: ToKernel) -> Vec<u8> {
-    let mut buf = [0u8; MAX_ENCODED_FRAME_LEN];
-    encode_frame(&Frame { request_id, body }, &mut buf)
-        .unwrap()
-        .to_vec()
-}
 
 /// A reader that hands out its bytes in small pieces of varying size.
 struct Trickle<'a> {
@@ -291,30 +287,18 @@ fn invalid_plan_fields_are_named() {
     bad.previous_mode = Some(4);
     input.extend(frame_bytes(5, ToKernel::PlanRequest(bad)));
     let (out, _) = run(&input, 16, false);
-    assert_eq!(
-        out[1].body,
-        FromKernel::Error(WireError::InvalidRequest {
-            field: RequestField::StartState
-        })
-    );
-    assert_eq!(
-        out[2].body,
-        FromKernel::Error(WireError::InvalidRequest {
-            field: RequestField::Goal
-        })
-    );
-    assert_eq!(
-        out[3].body,
-        FromKernel::Error(WireError::InvalidRequest {
-            field: RequestField::Settings
-        })
-    );
-    assert_eq!(
-        out[4].body,
-        FromKernel::Error(WireError::InvalidRequest {
-            field: RequestField::PreviousMode
-        })
-    );
+    for (i, field) in [
+        (1, RequestField::StartState),
+        (2, RequestField::Goal),
+        (3, RequestField::Settings),
+        (4, RequestField::PreviousMode),
+    ] {
+        assert_eq!(
+            out[i].body,
+            FromKernel::Error(WireError::InvalidRequest { field }),
+            "reply {i}"
+        );
+    }
 }
 
 mod garbage {

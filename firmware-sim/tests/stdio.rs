@@ -1,28 +1,21 @@
 //! The `dips-firmware-sim` binary serves the protocol on stdin/stdout.
 
+mod common;
+
 use std::io::Write;
 use std::process::{Command, Stdio};
 
+use common::frame_bytes;
 use dips_wire::*;
 
 #[test]
 fn binary_answers_hello_over_stdio() {
     let mut input = Vec::new();
-    let mut buf = [0u8; MAX_ENCODED_FRAME_LEN];
     for (id, body) in [
         (1, ToKernel::Hello(Hello::current())),
         (2, ToKernel::ModelEnd),
     ] {
-        input.extend_from_slice(
-            encode_frame(
-                &Frame {
-                    request_id: id,
-                    body,
-                },
-                &mut buf,
-            )
-            .unwrap(),
-        );
+        input.extend(frame_bytes(id, body));
     }
     input.extend([0xAB, 0x00]);
     let mut child = Command::new(env!("CARGO_BIN_EXE_dips-firmware-sim"))
@@ -89,21 +82,9 @@ fn binary_serves_tcp_connections_one_after_another() {
     let model = vec![3u8; 1500];
     let exchange = |frames: Vec<(u32, ToKernel)>| -> Vec<Frame<FromKernel>> {
         let mut stream = TcpStream::connect(&addr).unwrap();
-        let mut buf = [0u8; MAX_ENCODED_FRAME_LEN];
         let count = frames.len();
         for (id, body) in frames {
-            stream
-                .write_all(
-                    encode_frame(
-                        &Frame {
-                            request_id: id,
-                            body,
-                        },
-                        &mut buf,
-                    )
-                    .unwrap(),
-                )
-                .unwrap();
+            stream.write_all(&frame_bytes(id, body)).unwrap();
         }
         let mut acc = FrameAccumulator::<MAX_ENCODED_FRAME_LEN>::new();
         let mut replies = Vec::new();

@@ -16,6 +16,29 @@ fn dips(args: &[&str]) -> std::process::Output {
         .unwrap()
 }
 
+fn assert_success(out: &std::process::Output) {
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+}
+
+fn read_json(path: &std::path::Path) -> serde_json::Value {
+    serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap()
+}
+
+/// Every value within onnxruntime's reference (1e-4 relative, 1e-5 absolute floor).
+fn assert_matches_reference(got: &serde_json::Value, want: &[f64], what: &str) {
+    let got: Vec<f64> = serde_json::from_value(got.clone()).unwrap();
+    for (g, w) in got.iter().zip(want) {
+        assert!(
+            (g - w).abs() <= (1e-4 * w.abs()).max(1e-5),
+            "{what}: {g} vs {w}"
+        );
+    }
+}
+
 fn tmpdir() -> PathBuf {
     let d = std::env::temp_dir().join(format!("dips-model-cli-{}", std::process::id()));
     std::fs::create_dir_all(&d).unwrap();
@@ -25,11 +48,7 @@ fn tmpdir() -> PathBuf {
 #[test]
 fn check_prints_the_contract_as_json() {
     let out = dips(&["model", "check", fixture("denoiser.onnx").to_str().unwrap()]);
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    assert_success(&out);
     let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
     assert_eq!(v["valid"], true);
     assert_eq!(v["contract"]["task"], "card");
@@ -56,8 +75,7 @@ fn check_refuses_a_broken_file() {
 fn run_with_both_engines_reproduces_the_reference_and_lower_writes_a_blob() {
     let d = tmpdir();
     let io = fixture("discriminator.io.json");
-    let reference: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(&io).unwrap()).unwrap();
+    let reference = read_json(&io);
     let want: Vec<f64> =
         serde_json::from_value(reference["outputs"]["p_real"]["data"].clone()).unwrap();
     for engine in ["tract", "kernel"] {
@@ -73,22 +91,10 @@ fn run_with_both_engines_reproduces_the_reference_and_lower_writes_a_blob() {
             "--engine",
             engine,
         ]);
-        assert!(
-            out.status.success(),
-            "{}",
-            String::from_utf8_lossy(&out.stderr)
-        );
-        let got: serde_json::Value =
-            serde_json::from_str(&std::fs::read_to_string(&out_path).unwrap()).unwrap();
+        assert_success(&out);
+        let got = read_json(&out_path);
         assert_eq!(got["outputs"]["p_real"]["shape"], serde_json::json!([3, 1]));
-        let got: Vec<f64> =
-            serde_json::from_value(got["outputs"]["p_real"]["data"].clone()).unwrap();
-        for (g, w) in got.iter().zip(&want) {
-            assert!(
-                (g - w).abs() <= (1e-4 * w.abs()).max(1e-5),
-                "{engine}: {g} vs {w}"
-            );
-        }
+        assert_matches_reference(&got["outputs"]["p_real"]["data"], &want, engine);
     }
     let blob = d.join("disc.dipsm");
     let out = dips(&[
@@ -98,11 +104,7 @@ fn run_with_both_engines_reproduces_the_reference_and_lower_writes_a_blob() {
         "--out",
         blob.to_str().unwrap(),
     ]);
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    assert_success(&out);
     let bytes = std::fs::read(&blob).unwrap();
     assert!(dips_kernel::nn::model::parse(&bytes).is_ok());
     // The blob runs on its own (its contract travels with it).
@@ -118,20 +120,9 @@ fn run_with_both_engines_reproduces_the_reference_and_lower_writes_a_blob() {
         "--engine",
         "kernel",
     ]);
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let got: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(&out_path).unwrap()).unwrap();
-    let got: Vec<f64> = serde_json::from_value(got["outputs"]["p_real"]["data"].clone()).unwrap();
-    for (g, w) in got.iter().zip(&want) {
-        assert!(
-            (g - w).abs() <= (1e-4 * w.abs()).max(1e-5),
-            "blob: {g} vs {w}"
-        );
-    }
+    assert_success(&out);
+    let got = read_json(&out_path);
+    assert_matches_reference(&got["outputs"]["p_real"]["data"], &want, "blob");
 }
 
 #[test]
@@ -146,11 +137,7 @@ fn bench_inference_prints_both_engine_timings() {
         "2",
         "--json",
     ]);
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    assert_success(&out);
     let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
     assert!(v["tract_s"].as_f64().unwrap() > 0.0);
     assert!(v["kernel_s"].as_f64().unwrap() > 0.0);

@@ -3,7 +3,8 @@
 //!
 //! Tensors are flat, row-major `f32` slices in the layout of the model contract
 //! (`CONTRACTS.md` §3): `x` is `[batch, horizon, dim]`, `t` and `cond_mask` are `[batch]`,
-//! `context` is `[batch, fingers]`, `eps` is `[batch, horizon, dim]`, `p_real` is `[batch]`.
+//! `context` is `[batch, fingers]`, `eps` is `[batch, horizon, dim]`, `p_real` is `[batch]`
+//! (the contract's `[B, 1]` output, flattened).
 //! Sizes are run-time values so a model of other dimensions needs no recompilation.
 
 /// Dimensions a model was exported with (contract metadata `dips.horizon`, ...).
@@ -53,7 +54,10 @@ pub trait DenoiserEngine {
     /// The model's column normalization.
     fn normalization(&self) -> Normalization<'_>;
 
-    /// The largest batch one call accepts (`usize::MAX` when unbounded).
+    /// The largest batch one call accepts (`usize::MAX` when unbounded). The batch counts
+    /// samples: the diffusion sampler evaluates each trajectory's conditioned and
+    /// unconditioned copy in one call, so it needs at least 2 and sends at most
+    /// `max_batch / 2` trajectories per call.
     fn max_batch(&self) -> usize;
 
     /// Predict the noise for a batch: `x` `[batch,T,D]` normalized noisy trajectories,
@@ -71,6 +75,8 @@ pub trait DenoiserEngine {
 }
 
 /// A discriminator Ψ (contract role `discriminator`).
+// `dims`, `normalization` and `max_batch` repeat `DenoiserEngine`'s on purpose: each trait is
+// complete on its own, so an engine that loads either role implements both independently.
 pub trait DiscriminatorEngine {
     /// The engine's error type.
     type Error: core::fmt::Debug;

@@ -3,7 +3,9 @@
 
 mod common;
 
-use common::{NoisyScrewdriver, SmoothScorer, TickClock, screwdriver_start};
+use common::{
+    NoisyScrewdriver, SmoothScorer, TickClock, paper_prior, screwdriver_problem, screwdriver_start,
+};
 use dips_kernel::budget::{Clock, NoClock};
 use dips_kernel::mode::{ContactMode, ModeId, SegmentDims, Task};
 use dips_kernel::prior::MarkovPrior;
@@ -14,14 +16,6 @@ use dips_kernel::search::{
     SegmentSampler,
 };
 use dips_kernel::task::ScrewdriverObjective;
-
-fn paper_prior() -> MarkovPrior {
-    MarkovPrior::from_rows(
-        &[0.8, 0.1, 0.1],
-        &[&[0.1, 0.45, 0.45], &[0.45, 0.1, 0.45], &[0.45, 0.45, 0.1]],
-    )
-    .unwrap()
-}
 
 fn plan_with<const K: usize, const N: usize, const O: usize, const S: usize>(
     planner: &mut Planner<K, N, O, S>,
@@ -248,13 +242,7 @@ impl SegmentSampler for Failing {
 fn sampler_failure_returns_the_root() {
     let prior = paper_prior();
     let start = screwdriver_start(0.0);
-    let problem = Problem {
-        task: Task::Screwdriver,
-        dims: Task::Screwdriver.dims(),
-        start: &start,
-        executed: None,
-        prior: &prior,
-    };
+    let problem = screwdriver_problem(&start, None, &prior);
     let objective = ScrewdriverObjective {
         reference_yaw: 0.0,
         goal_yaw: -1.0,
@@ -301,13 +289,7 @@ impl SegmentSampler for Chunked {
 fn small_sampler_batches_are_split_without_changing_the_plan() {
     let prior = paper_prior();
     let start = screwdriver_start(0.0);
-    let problem = Problem {
-        task: Task::Screwdriver,
-        dims: Task::Screwdriver.dims(),
-        start: &start,
-        executed: None,
-        prior: &prior,
-    };
+    let problem = screwdriver_problem(&start, None, &prior);
     let objective = ScrewdriverObjective {
         reference_yaw: 0.0,
         goal_yaw: -1.0,

@@ -2,11 +2,11 @@
 
 mod common;
 
-use common::{NoisyScrewdriver, SmoothScorer, screwdriver_start};
+use common::{NoisyScrewdriver, SmoothScorer, screwdriver_problem, screwdriver_start};
 use dips_kernel::budget::NoClock;
-use dips_kernel::mode::{ModeId, Task};
+use dips_kernel::mode::ModeId;
 use dips_kernel::prior::MarkovPrior;
-use dips_kernel::search::{PaperPlanner, Problem, SearchConfig, SearchReport, SearchVariant};
+use dips_kernel::search::{PaperPlanner, SearchConfig, SearchReport, SearchVariant};
 use dips_kernel::task::ScrewdriverObjective;
 
 fn plan(
@@ -16,13 +16,7 @@ fn plan(
 ) -> SearchReport {
     let prior = MarkovPrior::uniform(3).unwrap();
     let start = screwdriver_start(0.3);
-    let problem = Problem {
-        task: Task::Screwdriver,
-        dims: Task::Screwdriver.dims(),
-        start: &start,
-        executed,
-        prior: &prior,
-    };
+    let problem = screwdriver_problem(&start, executed, &prior);
     let objective = ScrewdriverObjective::from_state(&start).unwrap();
     planner.plan(
         config,

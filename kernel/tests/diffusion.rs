@@ -5,9 +5,12 @@
 //! `E[ε | x_t] = √(1−ᾱ) (x_t − √ᾱ a) / (ᾱ b² + 1 − ᾱ)`. A correct sampler driven by it must
 //! reproduce the data's moments.
 
+mod engines;
+
 use dips_kernel::diffusion::*;
 use dips_kernel::engine::{DenoiserEngine, ModelDims, Normalization};
 use dips_kernel::rng::KernelRng;
+use engines::{alpha_bars, posterior_eps};
 
 const T: usize = 3;
 const STATE: usize = 2;
@@ -15,24 +18,6 @@ const ACTION: usize = 3;
 const D: usize = STATE + ACTION;
 const F: usize = 2;
 const STEPS: usize = 256;
-
-/// Our own cosine schedule (f64), independent of the kernel's.
-fn alpha_bars(steps: usize) -> Vec<f64> {
-    let s = 0.008;
-    let f = |k: f64| {
-        (((k / steps as f64 + s) / (1.0 + s)) * std::f64::consts::FRAC_PI_2)
-            .cos()
-            .powi(2)
-    };
-    let mut acc = 1.0;
-    (0..steps)
-        .map(|i| {
-            let beta = (1.0 - f(i as f64 + 1.0) / f(i as f64)).clamp(0.0, 0.999);
-            acc *= 1.0 - beta;
-            acc
-        })
-        .collect()
-}
 
 #[derive(Debug, Clone)]
 struct Call {
@@ -172,9 +157,7 @@ impl DenoiserEngine for GaussianDenoiser {
                             / self.std[j],
                     );
                     let bs = f64::from(self.sigma[r][j] / self.std[j]);
-                    let xt = f64::from(x[i]);
-                    eps[i] = ((1.0 - ab).sqrt() * (xt - ab.sqrt() * a) / (ab * bs * bs + 1.0 - ab))
-                        as f32;
+                    eps[i] = posterior_eps(ab, f64::from(x[i]), a, bs) as f32;
                 }
             }
         }
@@ -521,33 +504,11 @@ fn chunking_gives_identical_bits() {
 #[test]
 fn same_seed_same_bits_different_seed_different_samples() {
     let ctx = contexts(4);
-    let a = run(
-        &mut GaussianDenoiser::new(),
-        &SamplerConfig::default(),
-        &ctx,
-        None,
-        99,
-        4,
-    )
-    .unwrap();
-    let b = run(
-        &mut GaussianDenoiser::new(),
-        &SamplerConfig::default(),
-        &ctx,
-        None,
-        99,
-        4,
-    )
-    .unwrap();
-    let c = run(
-        &mut GaussianDenoiser::new(),
-        &SamplerConfig::default(),
-        &ctx,
-        None,
-        98,
-        4,
-    )
-    .unwrap();
+    let with_seed = |seed| {
+        let config = SamplerConfig::default();
+        run(&mut GaussianDenoiser::new(), &config, &ctx, None, seed, 4).unwrap()
+    };
+    let (a, b, c) = (with_seed(99), with_seed(99), with_seed(98));
     assert!(a.iter().zip(&b).all(|(x, y)| x.to_bits() == y.to_bits()));
     assert_ne!(a, c);
 }

@@ -4,16 +4,15 @@
 mod common;
 mod engines;
 
-use common::screwdriver_start;
+use common::{paper_prior, screwdriver_problem, screwdriver_start};
 use dips_kernel::adapters::*;
 use dips_kernel::budget::NoClock;
 use dips_kernel::diffusion::{
     SampleRequest, SamplerConfig, SamplerError, SamplerScratch, SamplingMethod, ScratchBuffer,
     ScratchLayout, sample,
 };
-use dips_kernel::engine::DenoiserEngine;
+use dips_kernel::engine::{DenoiserEngine, DiscriminatorEngine};
 use dips_kernel::mode::{ContactMode, ModeId, SegmentDims, Task};
-use dips_kernel::prior::MarkovPrior;
 use dips_kernel::rng::KernelRng;
 use dips_kernel::search::TaskObjective;
 use dips_kernel::search::{
@@ -24,14 +23,6 @@ use dips_kernel::task::ScrewdriverObjective;
 use engines::{GaussianDenoiser, LogisticDiscriminator, TURN};
 
 const STEPS: usize = 16;
-
-fn paper_prior() -> MarkovPrior {
-    MarkovPrior::from_rows(
-        &[0.8, 0.1, 0.1],
-        &[&[0.1, 0.45, 0.45], &[0.45, 0.1, 0.45], &[0.45, 0.45, 0.1]],
-    )
-    .unwrap()
-}
 
 fn mode(task: Task, name: &str) -> ContactMode {
     task.contact_mode(task.mode_by_name(name).unwrap()).unwrap()
@@ -60,6 +51,22 @@ fn buffers(denoiser: &GaussianDenoiser, max_segments: usize, chunk: usize) -> Bu
     }
 }
 
+impl Buffers {
+    /// The sampler over `denoiser` and the scorer over `disc`, carved out of these buffers.
+    fn adapters<D: DenoiserEngine, S: DiscriminatorEngine>(
+        &mut self,
+        denoiser: D,
+        disc: S,
+        config: SamplerConfig,
+    ) -> (DiffusionSegmentSampler<'_, D>, DiscriminatorScorer<'_, S>) {
+        let sampler =
+            DiffusionSegmentSampler::new(denoiser, config, &mut self.sampler, &self.sampler_layout)
+                .unwrap();
+        let scorer = DiscriminatorScorer::new(disc, &mut self.scorer, &self.scorer_layout).unwrap();
+        (sampler, scorer)
+    }
+}
+
 fn plan_screwdriver(
     config: &SearchConfig,
     sampler_config: SamplerConfig,
@@ -72,23 +79,9 @@ fn plan_screwdriver(
     let prior = paper_prior();
     let start = screwdriver_start(0.3);
     let objective = ScrewdriverObjective::from_state(&start).unwrap();
-    let problem = Problem {
-        task: Task::Screwdriver,
-        dims: Task::Screwdriver.dims(),
-        start: &start,
-        executed: None,
-        prior: &prior,
-    };
+    let problem = screwdriver_problem(&start, None, &prior);
     let report = {
-        let mut sampler = DiffusionSegmentSampler::new(
-            &mut denoiser,
-            sampler_config,
-            &mut b.sampler,
-            &b.sampler_layout,
-        )
-        .unwrap();
-        let mut scorer =
-            DiscriminatorScorer::new(&mut disc, &mut b.scorer, &b.scorer_layout).unwrap();
+        let (mut sampler, mut scorer) = b.adapters(&mut denoiser, &mut disc, sampler_config);
         planner.plan(
             config,
             &problem,
@@ -233,15 +226,8 @@ fn mismatched_models_and_calls_get_typed_errors() {
     let mut card_denoiser = GaussianDenoiser::new(Task::Card, STEPS);
     let mut card_disc = LogisticDiscriminator::new(Task::Card);
     let mut b = buffers(&card_denoiser, 64, 4);
-    let mut sampler = DiffusionSegmentSampler::new(
-        &mut card_denoiser,
-        SamplerConfig::default(),
-        &mut b.sampler,
-        &b.sampler_layout,
-    )
-    .unwrap();
-    let mut scorer =
-        DiscriminatorScorer::new(&mut card_disc, &mut b.scorer, &b.scorer_layout).unwrap();
+    let (mut sampler, mut scorer) =
+        b.adapters(&mut card_denoiser, &mut card_disc, SamplerConfig::default());
     let horizon = DimsMismatch {
         field: DimField::Horizon,
         model: 9,
@@ -400,26 +386,13 @@ fn a_planner_refuses_models_of_another_task() {
     let mut denoiser = GaussianDenoiser::new(Task::Card, STEPS);
     let mut disc = LogisticDiscriminator::new(Task::Screwdriver);
     let mut b = buffers(&denoiser, 48, 8);
-    let mut sampler = DiffusionSegmentSampler::new(
-        &mut denoiser,
-        SamplerConfig::default(),
-        &mut b.sampler,
-        &b.sampler_layout,
-    )
-    .unwrap();
-    let mut scorer = DiscriminatorScorer::new(&mut disc, &mut b.scorer, &b.scorer_layout).unwrap();
+    let (mut sampler, mut scorer) = b.adapters(&mut denoiser, &mut disc, SamplerConfig::default());
     let mut planner = common::boxed_planner::<16, 512, 256, 481>();
     let prior = paper_prior();
     let start = screwdriver_start(0.0);
     let report = planner.plan(
         &SearchConfig::default(),
-        &Problem {
-            task: Task::Screwdriver,
-            dims: Task::Screwdriver.dims(),
-            start: &start,
-            executed: None,
-            prior: &prior,
-        },
+        &screwdriver_problem(&start, None, &prior),
         &mut sampler,
         &mut scorer,
         &ScrewdriverObjective::from_state(&start).unwrap(),

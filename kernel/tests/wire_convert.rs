@@ -4,7 +4,7 @@
 mod common;
 mod engines;
 
-use common::screwdriver_start;
+use common::{paper_prior, screwdriver_start};
 use dips_kernel::adapters::{
     DiffusionSegmentSampler, DiscriminatorScorer, SamplerAdapterLayout, ScorerAdapterLayout,
 };
@@ -318,11 +318,7 @@ fn a_framed_request_is_planned_and_its_reply_matches_the_report() {
         DiffusionSegmentSampler::new(&mut denoiser, SamplerConfig::default(), &mut sb, &sl)
             .unwrap();
     let mut scorer = DiscriminatorScorer::new(&mut disc, &mut cb, &cl).unwrap();
-    let prior = MarkovPrior::from_rows(
-        &[0.8, 0.1, 0.1],
-        &[&[0.1, 0.45, 0.45], &[0.45, 0.1, 0.45], &[0.45, 0.45, 0.1]],
-    )
-    .unwrap();
+    let prior = paper_prior();
     let mut planner = common::boxed_planner::<16, 512, 256, 481>();
 
     let start = screwdriver_start(1.0);

@@ -3,7 +3,7 @@
 
 mod common;
 
-use common::{FIXTURES, ROLES, assert_agree, fixture, load_engine, tiled};
+use common::{FIXTURES, ROLES, assert_agree, fixture, load_engine, run_tiled};
 use dips_onnx::io_json::TensorFile;
 
 fn check(engine: &str) {
@@ -12,12 +12,8 @@ fn check(engine: &str) {
             let path = fixture(dir, &format!("{role}.onnx"));
             let io = TensorFile::read(&fixture(dir, &format!("{role}.io.json"))).unwrap();
             let mut e = load_engine(engine, &path);
-            let c = e.contract().clone();
             for reps in [1, 32] {
-                let (batch, ins, want) = tiled(&c, &io, reps);
-                let refs: Vec<&[f32]> = ins.iter().map(Vec::as_slice).collect();
-                let mut out = vec![0.0; want.len()];
-                e.run(batch, &refs, &mut out).unwrap();
+                let (batch, out, want) = run_tiled(&mut e, &io, reps);
                 let worst =
                     assert_agree(&out, &want, &format!("{engine} {dir}/{role} batch {batch}"));
                 eprintln!(

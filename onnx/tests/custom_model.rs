@@ -5,7 +5,7 @@ mod common;
 
 use std::path::PathBuf;
 
-use common::{assert_agree, load_engine, tiled};
+use common::{assert_agree, load_engine, run_tiled, tiled};
 use dips_onnx::io_json::TensorFile;
 
 fn data(file: &str) -> PathBuf {
@@ -19,12 +19,8 @@ fn custom_architecture_matches_onnxruntime_on_both_engines() {
     let io = TensorFile::read(&data("custom_card.io.json")).unwrap();
     for engine in ["tract", "kernel"] {
         let mut e = load_engine(engine, &data("custom_card.onnx"));
-        let c = e.contract().clone();
         for reps in [1, 24] {
-            let (batch, ins, want) = tiled(&c, &io, reps);
-            let refs: Vec<&[f32]> = ins.iter().map(Vec::as_slice).collect();
-            let mut out = vec![0.0; want.len()];
-            e.run(batch, &refs, &mut out).unwrap();
+            let (batch, out, want) = run_tiled(&mut e, &io, reps);
             assert_agree(&out, &want, &format!("{engine} custom batch {batch}"));
         }
     }
@@ -35,12 +31,8 @@ fn group_normalization_op_matches_onnxruntime_on_both_engines() {
     let io = TensorFile::read(&data("groupnorm21_card.io.json")).unwrap();
     for engine in ["tract", "kernel"] {
         let mut e = load_engine(engine, &data("groupnorm21_card.onnx"));
-        let c = e.contract().clone();
         for reps in [1, 32] {
-            let (batch, ins, want) = tiled(&c, &io, reps);
-            let refs: Vec<&[f32]> = ins.iter().map(Vec::as_slice).collect();
-            let mut out = vec![0.0; want.len()];
-            e.run(batch, &refs, &mut out).unwrap();
+            let (batch, out, want) = run_tiled(&mut e, &io, reps);
             assert_agree(
                 &out,
                 &want,

@@ -5,7 +5,8 @@ use super::model::{ModelInfo, install, parse, run};
 use crate::engine::{DenoiserEngine, DiscriminatorEngine, ModelDims, Normalization};
 
 /// A lowered model ready to run: the blob, and caller memory holding its weights, the op
-/// scratch and the activation arena. Runs any batch up to [`KernelEngine::max_batch`].
+/// scratch and the activation arena. Runs any batch up to what that memory holds
+/// ([`ModelInfo::max_batch`], reported as the engines' `max_batch()`).
 #[derive(Debug)]
 pub struct KernelEngine<'b, 'm> {
     blob: &'b [u8],

@@ -327,6 +327,23 @@ fn sample<'a>(s: &'a [f32], o: &Operand, i: usize) -> Option<&'a [f32]> {
     }
 }
 
+/// Call `f` on each sample's input (`xl` floats of `src`) and output (`yl` floats of `dst`),
+/// in sample order; `None` as soon as a slice is out of range or `f` fails.
+fn per_sample(
+    src: &[f32],
+    dst: &mut [f32],
+    batch: usize,
+    (xl, yl): (usize, usize),
+    mut f: impl FnMut(&[f32], &mut [f32]) -> Option<()>,
+) -> Option<()> {
+    for i in 0..batch {
+        let xs = src.get(i * xl..(i + 1) * xl)?;
+        let ys = dst.get_mut(i * yl..(i + 1) * yl)?;
+        f(xs, ys)?;
+    }
+    Some(())
+}
+
 fn exec(
     op: &Op,
     weights: &[f32],
@@ -340,17 +357,20 @@ fn exec(
         Op::Conv1d { x, y, w, b, g } | Op::ConvTranspose1d { x, y, w, b, g } => {
             let (src, dst) = split(arena, r(x), r(y))?;
             let (w, b) = (weight_slice(weights, w)?, weight_slice(weights, b)?);
-            let (xl, yl) = (x.len as usize, y.len as usize);
-            for i in 0..batch {
-                let xs = src.get(i * xl..(i + 1) * xl)?;
-                let ys = dst.get_mut(i * yl..(i + 1) * yl)?;
-                let res = if matches!(op, Op::Conv1d { .. }) {
-                    ops::conv::conv1d(g, xs, ys, w, b, temp)
-                } else {
-                    ops::conv::conv_transpose1d(g, xs, ys, w, b, temp)
-                };
-                res.ok()?;
-            }
+            let transposed = matches!(op, Op::ConvTranspose1d { .. });
+            per_sample(
+                src,
+                dst,
+                batch,
+                (x.len as usize, y.len as usize),
+                |xs, ys| {
+                    if transposed {
+                        ops::conv::conv_transpose1d(g, xs, ys, w, b, temp).ok()
+                    } else {
+                        ops::conv::conv1d(g, xs, ys, w, b, temp).ok()
+                    }
+                },
+            )?;
         }
         Op::InstanceNorm {
             x,
@@ -364,11 +384,9 @@ fn exec(
             let (src, dst) = split(arena, r(x), r(y))?;
             let (sc, bi) = (weight_slice(weights, scale)?, weight_slice(weights, bias)?);
             let l = x.len as usize;
-            for i in 0..batch {
-                let xs = src.get(i * l..(i + 1) * l)?;
-                let ys = dst.get_mut(i * l..(i + 1) * l)?;
-                ops::norm::instance_norm(xs, ys, *len as usize, *eps, sc, bi).ok()?;
-            }
+            per_sample(src, dst, batch, (l, l), |xs, ys| {
+                ops::norm::instance_norm(xs, ys, *len as usize, *eps, sc, bi).ok()
+            })?;
         }
         Op::GroupNorm {
             x,
@@ -384,9 +402,7 @@ fn exec(
             let (src, dst) = split(arena, r(x), r(y))?;
             let (ga, be) = (weight_slice(weights, gamma)?, weight_slice(weights, beta)?);
             let l = x.len as usize;
-            for i in 0..batch {
-                let xs = src.get(i * l..(i + 1) * l)?;
-                let ys = dst.get_mut(i * l..(i + 1) * l)?;
+            per_sample(src, dst, batch, (l, l), |xs, ys| {
                 ops::norm::group_norm(
                     xs,
                     ys,
@@ -397,8 +413,8 @@ fn exec(
                     be,
                     *mish,
                 )
-                .ok()?;
-            }
+                .ok()
+            })?;
         }
         Op::Unary { x, y, f } => {
             let (src, dst) = split(arena, r(x), r(y))?;
@@ -481,13 +497,16 @@ fn exec(
             inner,
         } => {
             let (src, dst) = split(arena, r(x), r(y))?;
-            let (xl, yl) = (x.len as usize, y.len as usize);
-            for i in 0..batch {
-                let xs = src.get(i * xl..(i + 1) * xl)?;
-                let ys = dst.get_mut(i * yl..(i + 1) * yl)?;
-                ops::norm::reduce_mean(xs, ys, *outer as usize, *len as usize, *inner as usize)
-                    .ok()?;
-            }
+            per_sample(
+                src,
+                dst,
+                batch,
+                (x.len as usize, y.len as usize),
+                |xs, ys| {
+                    ops::norm::reduce_mean(xs, ys, *outer as usize, *len as usize, *inner as usize)
+                        .ok()
+                },
+            )?;
         }
     }
     Some(())
@@ -679,43 +698,37 @@ mod tests {
 
     #[test]
     fn out_of_range_or_aliased_ops_are_refused_at_parse() {
-        let mut p = program();
-        p[2] = Op::Unary {
-            x: buf(6, 1),
-            y: buf(8, 1),
+        // The test program with op `index` replaced.
+        let with = |index: usize, op: Op| {
+            let mut p = program();
+            p[index] = op;
+            blob(&p)
+        };
+        let tanh = |x, y| Op::Unary {
+            x,
+            y,
             f: UnaryFn::Tanh,
         };
-        assert_eq!(parse(&blob(&p)), Err(NnError::BadOp { index: 2 }));
-        let mut p = program();
-        p[0] = Op::Gemm {
+        let gemm = |w_off, k| Op::Gemm {
             a: buf(0, 4),
             y: buf(5, 1),
-            w: W { off: 6, len: 4 },
+            w: W { off: w_off, len: 4 },
             b: W { off: 4, len: 1 },
             rows: 1,
-            k: 4,
+            k,
             n: 1,
         };
-        assert_eq!(parse(&blob(&p)), Err(NnError::BadOp { index: 0 }));
-        let mut p = program();
-        p[2] = Op::Unary {
-            x: buf(6, 1),
-            y: buf(6, 1),
-            f: UnaryFn::Tanh,
-        };
-        assert_eq!(parse(&blob(&p)), Err(NnError::BadOp { index: 2 }));
+        let out_of_range = with(2, tanh(buf(6, 1), buf(8, 1)));
+        assert_eq!(parse(&out_of_range), Err(NnError::BadOp { index: 2 }));
+        let weights_out_of_range = with(0, gemm(6, 4));
+        assert_eq!(
+            parse(&weights_out_of_range),
+            Err(NnError::BadOp { index: 0 })
+        );
+        let aliased = with(2, tanh(buf(6, 1), buf(6, 1)));
+        assert_eq!(parse(&aliased), Err(NnError::BadOp { index: 2 }));
         // Inconsistent sizes inside an op pass the reference checks but fail when run.
-        let mut p = program();
-        p[0] = Op::Gemm {
-            a: buf(0, 4),
-            y: buf(5, 1),
-            w: W { off: 0, len: 4 },
-            b: W { off: 4, len: 1 },
-            rows: 1,
-            k: 3,
-            n: 1,
-        };
-        let b = blob(&p);
+        let b = with(0, gemm(0, 3));
         let info = parse(&b).unwrap();
         let mut mem = vec![0.0; info.memory_len(1).unwrap()];
         install(&info, &b, &mut mem).unwrap();

@@ -87,6 +87,14 @@ fn order_key(f: f32) -> u32 {
     if b >> 31 == 1 { !b } else { b | 0x8000_0000 }
 }
 
+/// The `[c0, c1)` ranges that cover `0..n` with at most `max_batch` (at least 1) each.
+fn batches(n: usize, max_batch: usize) -> impl Iterator<Item = (usize, usize)> {
+    let step = max_batch.max(1);
+    (0..n)
+        .step_by(step)
+        .map(move |c0| (c0, n.min(c0.saturating_add(step))))
+}
+
 fn take_slot(free: &[u16], free_len: &mut usize) -> Option<u16> {
     if *free_len == 0 {
         return None;
@@ -471,10 +479,7 @@ impl<const K: usize, const N: usize, const O: usize, const S: usize> Planner<K, 
         let starts = &self.starts.as_flattened().as_flattened()[..n * sd];
         let contact = &self.contact.as_flattened()[..n];
         let segments = &mut self.segments.as_flattened_mut().as_flattened_mut()[..n * floats];
-        let max_batch = sampler.max_batch().max(1);
-        let mut c0 = 0;
-        while c0 < n {
-            let c1 = n.min(c0.saturating_add(max_batch));
+        for (c0, c1) in batches(n, sampler.max_batch()) {
             stats.sampler_calls += 1;
             sampler
                 .sample(
@@ -485,14 +490,10 @@ impl<const K: usize, const N: usize, const O: usize, const S: usize> Planner<K, 
                     &mut segments[c0 * floats..c1 * floats],
                 )
                 .map_err(|_| ApproximateReason::SamplerFailed)?;
-            c0 = c1;
         }
         stats.segments_sampled += n as u32;
         let psi = &mut self.psi.as_flattened_mut()[..n];
-        let max_batch = scorer.max_batch().max(1);
-        let mut c0 = 0;
-        while c0 < n {
-            let c1 = n.min(c0.saturating_add(max_batch));
+        for (c0, c1) in batches(n, scorer.max_batch()) {
             stats.scorer_calls += 1;
             scorer
                 .score(
@@ -502,7 +503,6 @@ impl<const K: usize, const N: usize, const O: usize, const S: usize> Planner<K, 
                     &mut psi[c0..c1],
                 )
                 .map_err(|_| ApproximateReason::ScorerFailed)?;
-            c0 = c1;
         }
         let cost = &mut self.cost.as_flattened_mut()[..n];
         let valid = &mut self.valid.as_flattened_mut()[..n];
@@ -692,6 +692,16 @@ mod tests {
             assert!(order_key(w[0]) <= order_key(w[1]), "{w:?}");
         }
         assert_eq!(order_key(f32::NAN), order_key(f32::INFINITY));
+    }
+
+    #[test]
+    fn batches_cover_the_range_in_order() {
+        let all = |n, m| batches(n, m).collect::<std::vec::Vec<_>>();
+        assert_eq!(all(7, 3), [(0, 3), (3, 6), (6, 7)]);
+        assert_eq!(all(6, 3), [(0, 3), (3, 6)]);
+        assert_eq!(all(2, 0), [(0, 1), (1, 2)]);
+        assert_eq!(all(5, usize::MAX), [(0, 5)]);
+        assert!(all(0, 4).is_empty());
     }
 
     #[test]

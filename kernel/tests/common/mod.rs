@@ -2,9 +2,35 @@
 #![allow(dead_code, unreachable_pub, missing_docs)]
 
 use dips_kernel::budget::Clock;
-use dips_kernel::mode::{ContactMode, SegmentDims, Task};
+use dips_kernel::mode::{ContactMode, ModeId, SegmentDims, Task};
+use dips_kernel::prior::MarkovPrior;
 use dips_kernel::rng::KernelRng;
-use dips_kernel::search::{Planner, SegmentSampler, SegmentScorer, TaskObjective};
+use dips_kernel::search::{Planner, Problem, SegmentSampler, SegmentScorer, TaskObjective};
+
+/// The screwdriver prior of the paper's trials: start 0.8 on turn, transitions 0.45/0.45
+/// away from the current mode, 0.1 to stay.
+pub fn paper_prior() -> MarkovPrior {
+    MarkovPrior::from_rows(
+        &[0.8, 0.1, 0.1],
+        &[&[0.1, 0.45, 0.45], &[0.45, 0.1, 0.45], &[0.45, 0.45, 0.1]],
+    )
+    .unwrap()
+}
+
+/// The screwdriver problem in its real sizes from `start`, after `executed` (if any).
+pub fn screwdriver_problem<'a>(
+    start: &'a [f32],
+    executed: Option<ModeId>,
+    prior: &'a MarkovPrior,
+) -> Problem<'a> {
+    Problem {
+        task: Task::Screwdriver,
+        dims: Task::Screwdriver.dims(),
+        start,
+        executed,
+        prior,
+    }
+}
 
 /// A boxed empty planner. Not inlined, so that in debug builds the temporary that
 /// `Box::new` builds on the stack is freed before the caller goes on.

@@ -23,6 +23,13 @@ pub fn alpha_bars(steps: usize) -> Vec<f64> {
         .collect()
 }
 
+/// The exact ε-predictor of Gaussian data: with the normalized data `y ~ N(a, b²)` and
+/// `x_t = √ᾱ y + √(1−ᾱ) ε`, `E[ε | x_t] = √(1−ᾱ)(x_t − √ᾱ a)/(ᾱ b² + 1 − ᾱ)`.
+pub fn posterior_eps(alpha_bar: f64, x_t: f64, a: f64, b: f64) -> f64 {
+    let ab = alpha_bar;
+    (1.0 - ab).sqrt() * (x_t - ab.sqrt() * a) / (ab * b * b + 1.0 - ab)
+}
+
 pub fn model_dims(dims: SegmentDims, diffusion_steps: usize) -> ModelDims {
     ModelDims {
         horizon: dims.horizon,
@@ -161,8 +168,7 @@ impl DenoiserEngine for GaussianDenoiser {
             for r in 0..rows {
                 for j in 0..d {
                     let (a, s) = self.moments(y0, turn, r, j);
-                    let xv = f64::from(xb[r * d + j]);
-                    let e = (1.0 - ab).sqrt() * (xv - ab.sqrt() * a) / (ab * s * s + 1.0 - ab);
+                    let e = posterior_eps(ab, f64::from(xb[r * d + j]), a, s);
                     eps[b * td + r * d + j] = e as f32;
                 }
             }

@@ -38,6 +38,10 @@ pub enum SearchVariant {
 }
 
 /// Search settings; the kernel's `SearchConfig` maps onto exactly these fields.
+///
+/// A copy of that type on purpose: this crate does not depend on the kernel, and the wire
+/// layout is frozen by the wire rules while the kernel's types may change;
+/// `dips_kernel::wire_convert` converts between the two.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, MaxSize)]
 pub struct SearchSettings {
     /// Particles per node.
@@ -129,7 +133,8 @@ pub enum ApproximateReason {
     ScorerFailed,
 }
 
-/// A capacity of the kernel's planner that a request needed more of.
+/// A capacity of the kernel's planner that a request needed more of (the wire copy of the
+/// kernel's `search::Capacity`, see [`SearchSettings`] for why it is a copy).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, MaxSize)]
 pub enum PlanCapacity {
     /// `k` exceeds the planner's particles per node.

@@ -41,6 +41,21 @@ pub(crate) fn tiled(
     (batch * reps, ins, out)
 }
 
+/// Run `e` once on `io`'s inputs tiled `reps` times: the batch, the engine's output and
+/// onnxruntime's.
+pub(crate) fn run_tiled(
+    e: &mut AnyEngine,
+    io: &TensorFile,
+    reps: usize,
+) -> (usize, Vec<f32>, Vec<f32>) {
+    let c = e.contract().clone();
+    let (batch, ins, want) = tiled(&c, io, reps);
+    let refs: Vec<&[f32]> = ins.iter().map(Vec::as_slice).collect();
+    let mut out = vec![0.0; want.len()];
+    e.run(batch, &refs, &mut out).unwrap();
+    (batch, out, want)
+}
+
 /// Load a model with the engine named `"tract"` or `"kernel"`.
 pub(crate) fn load_engine(kind: &str, path: &std::path::Path) -> AnyEngine {
     let kind = if kind == "tract" {

@@ -268,6 +268,31 @@ mod tests {
     use std::vec;
     use std::vec::Vec;
 
+    /// The geometry of a test case (`cout_padded` from [`padded_channels`]).
+    #[allow(clippy::too_many_arguments)]
+    fn case_geom(
+        cin: usize,
+        cout: usize,
+        lin: usize,
+        lout: usize,
+        k: usize,
+        s: usize,
+        d: usize,
+        pb: usize,
+    ) -> ConvGeom {
+        ConvGeom {
+            cin: cin as u32,
+            cout: cout as u32,
+            cout_padded: padded_channels(cout) as u32,
+            lin: lin as u32,
+            lout: lout as u32,
+            k: k as u32,
+            stride: s as u32,
+            dilation: d as u32,
+            pad_begin: pb as u32,
+        }
+    }
+
     #[allow(clippy::too_many_arguments)]
     fn naive_conv(
         x: &[f32],
@@ -356,17 +381,7 @@ mod tests {
             let b = rand_vec(cout, 200 + seed as u64);
             let (want, lout) = naive_conv(&x, &w, &b, cin, cout, lin, k, s, d, pb, pe);
             let coutp = padded_channels(cout);
-            let g = ConvGeom {
-                cin: cin as u32,
-                cout: cout as u32,
-                cout_padded: coutp as u32,
-                lin: lin as u32,
-                lout: lout as u32,
-                k: k as u32,
-                stride: s as u32,
-                dilation: d as u32,
-                pad_begin: pb as u32,
-            };
+            let g = case_geom(cin, cout, lin, lout, k, s, d, pb);
             let mut wp = vec![0.0; cin * k * coutp];
             pack_conv_kernel(&w, cout, cin, k, coutp, &mut wp).unwrap();
             let mut bp = b.clone();
@@ -393,17 +408,7 @@ mod tests {
             let b = rand_vec(cout, 20 + seed as u64);
             let (want, lout) = naive_convt(&x, &w, &b, cin, cout, lin, k, s, d, pb, pe);
             let coutp = padded_channels(cout);
-            let g = ConvGeom {
-                cin: cin as u32,
-                cout: cout as u32,
-                cout_padded: coutp as u32,
-                lin: lin as u32,
-                lout: lout as u32,
-                k: k as u32,
-                stride: s as u32,
-                dilation: d as u32,
-                pad_begin: pb as u32,
-            };
+            let g = case_geom(cin, cout, lin, lout, k, s, d, pb);
             let mut wp = vec![0.0; cin * k * coutp];
             pack_conv_transpose_kernel(&w, cin, cout, k, coutp, &mut wp).unwrap();
             let mut bp = b.clone();

@@ -106,41 +106,13 @@ mod tests {
         .unwrap();
         assert_eq!(z, vec![7.0, 6.0, 5.0, 4.0]);
         // out of range source or destination
-        assert!(
-            strided_copy(
-                &x,
-                &mut z,
-                &[1, 1, 1, 4],
-                9,
-                &[0, 0, 0, 1],
-                0,
-                &[0, 0, 0, 1]
-            )
-            .is_err()
-        );
-        assert!(
-            strided_copy(
-                &x,
-                &mut z,
-                &[1, 1, 1, 4],
-                3,
-                &[0, 0, 0, -1],
-                1,
-                &[0, 0, 0, 1]
-            )
-            .is_err()
-        );
-        assert!(
-            strided_copy(
-                &x,
-                &mut z,
-                &[1, 1, 1, 4],
-                2,
-                &[0, 0, 0, -1],
-                0,
-                &[0, 0, 0, 1]
-            )
-            .is_err()
-        );
+        for (x_off, xs, y_off) in [
+            (9, [0, 0, 0, 1], 0),
+            (3, [0, 0, 0, -1], 1),
+            (2, [0, 0, 0, -1], 0),
+        ] {
+            let got = strided_copy(&x, &mut z, &[1, 1, 1, 4], x_off, &xs, y_off, &[0, 0, 0, 1]);
+            assert!(got.is_err(), "x_off {x_off}, xs {xs:?}, y_off {y_off}");
+        }
     }
 }
