@@ -2,3 +2,6 @@
 
 pub mod cli;
 pub mod csvto;
+pub mod geometry;
+pub mod kinematics;
+pub mod scenes;
