@@ -4,4 +4,5 @@ pub mod cli;
 pub mod csvto;
 pub mod geometry;
 pub mod kinematics;
+pub mod problems;
 pub mod scenes;
