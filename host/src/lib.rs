@@ -6,3 +6,4 @@ pub mod geometry;
 pub mod kinematics;
 pub mod problems;
 pub mod scenes;
+pub mod world;

@@ -1,0 +1,692 @@
+//! The quasi-static test world that stands in for Isaac Gym (spec §1.2 and §4).
+//!
+//! One action is the paper's 1 s held joint-position command, split into
+//! [`WorldParams::substeps`] sub-steps of length `h`. Each sub-step solves one second-order cone
+//! program with Clarabel (see `socp`): the task fingers are stiff joint springs (stiffness `kp`)
+//! toward their commanded positions, the object carries an `s`-scaled mass regulariser plus
+//! damping `D/h` and gravity, and every contact within [`WorldParams::contact_margin`] adds one
+//! Anitescu friction cone. The cone duals are the contact forces. Sub-steps stop early once
+//! `‖δq‖ < early_stop`. See `docs/world.md` for the model and its artifacts.
+
+mod contacts;
+mod socp;
+
+use clarabel::solver::SolverStatus;
+use nalgebra::{DMatrix, Isometry3, Matrix3, Point3, Rotation3, Translation3, UnitQuaternion, Vector3};
+use serde::{Deserialize, Serialize};
+
+pub use contacts::ContactReport;
+
+use crate::geometry::Body;
+use crate::kinematics::{Finger, FingerFrames, HandJoints, HandModel};
+use crate::scenes::{GRAVITY, SceneKind, card, screwdriver};
+
+/// Physical and numerical parameters of the world.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct WorldParams {
+    /// Duration of one action (s); Isaac holds each target for 1 s.
+    pub action_duration: f64,
+    /// Sub-steps per action (`h = action_duration / substeps`).
+    pub substeps: usize,
+    /// Joint stiffness of the task fingers (N·m/rad).
+    pub kp: f64,
+    /// Mass-regularisation scale `s`: the largest object mass entry becomes `kp/s` (qsim's
+    /// `unactuated_mass_scale`).
+    pub mass_scale: f64,
+    /// Contacts with signed distance up to this are given a friction cone (m).
+    pub contact_margin: f64,
+    /// Finger–object friction coefficient.
+    pub finger_friction: f64,
+    /// Card–table friction coefficient (card scene).
+    pub table_friction: f64,
+    /// Finger–table friction coefficient (card scene).
+    pub finger_table_friction: f64,
+    /// Object damping: screwdriver roll/pitch/yaw, or the card's value on all six coordinates.
+    pub damping: [f64; 3],
+    /// Stop the sub-steps once the increment norm falls below this.
+    pub early_stop: f64,
+    /// Gravity (m/s²).
+    pub gravity: f64,
+    /// Keep the task joints within their limits with linear constraints.
+    pub enforce_joint_limits: bool,
+}
+
+impl WorldParams {
+    /// Defaults for a scene (spec §3 and §4).
+    pub fn for_scene(scene: SceneKind) -> WorldParams {
+        let (damping, table) = match scene {
+            SceneKind::Screwdriver => (screwdriver::DAMPING, 0.0),
+            SceneKind::Card => ([card::DAMPING; 3], card::TABLE_FRICTION),
+        };
+        WorldParams {
+            action_duration: 1.0,
+            substeps: 10,
+            kp: scene.kp(),
+            mass_scale: 5.0,
+            contact_margin: 0.02,
+            finger_friction: scene.finger_friction(),
+            table_friction: table,
+            finger_table_friction: card::FINGER_TABLE_FRICTION,
+            damping,
+            early_stop: 1e-6,
+            gravity: GRAVITY,
+            enforce_joint_limits: true,
+        }
+    }
+
+    /// Sub-step length (s).
+    pub fn h(&self) -> f64 {
+        self.action_duration / self.substeps.max(1) as f64
+    }
+}
+
+/// The object's configuration.
+#[derive(Debug, Clone, PartialEq)]
+pub enum ObjectState {
+    /// The screwdriver on its spherical pivot.
+    Screwdriver {
+        /// Orientation `Rx(roll)·Ry(pitch)·Rz(yaw)`.
+        orientation: UnitQuaternion<f64>,
+        /// Yaw unwrapped across ±π (rad, clockwise negative).
+        yaw: f64,
+    },
+    /// The free card.
+    Card {
+        /// Pose of the card centre.
+        pose: Isometry3<f64>,
+        /// Heading about world z, unwrapped (rad).
+        theta: f64,
+    },
+}
+
+fn wrap_angle(a: f64) -> f64 {
+    let two_pi = std::f64::consts::TAU;
+    let r = (a + std::f64::consts::PI).rem_euclid(two_pi) - std::f64::consts::PI;
+    if r <= -std::f64::consts::PI { r + two_pi } else { r }
+}
+
+/// Heading of a rotation about world z (yaw of a ZYX decomposition).
+fn heading(r: &UnitQuaternion<f64>) -> f64 {
+    let m = r.to_rotation_matrix();
+    m[(1, 0)].atan2(m[(0, 0)])
+}
+
+impl ObjectState {
+    /// The scene's initial object state.
+    pub fn initial(scene: SceneKind) -> ObjectState {
+        match scene {
+            SceneKind::Screwdriver => ObjectState::Screwdriver { orientation: UnitQuaternion::identity(), yaw: 0.0 },
+            SceneKind::Card => {
+                let [x, y, z] = card::INITIAL_CENTER;
+                ObjectState::Card { pose: Isometry3::translation(x, y, z), theta: 0.0 }
+            }
+        }
+    }
+
+    /// Build from the state's three object coordinates: `(roll, pitch, yaw)` for the
+    /// screwdriver, `(x, y, θ)` for the card (resting flat on the table).
+    pub fn from_coords(scene: SceneKind, coords: [f64; 3]) -> ObjectState {
+        match scene {
+            SceneKind::Screwdriver => {
+                let r = screwdriver::rotation(coords[0], coords[1], coords[2]);
+                ObjectState::Screwdriver { orientation: UnitQuaternion::from_rotation_matrix(&r), yaw: coords[2] }
+            }
+            SceneKind::Card => ObjectState::Card {
+                pose: Isometry3::from_parts(
+                    Translation3::new(coords[0], coords[1], card::INITIAL_CENTER[2]),
+                    UnitQuaternion::from_axis_angle(&Vector3::z_axis(), coords[2]),
+                ),
+                theta: coords[2],
+            },
+        }
+    }
+
+    /// World pose of the object frame (screwdriver: at the pivot).
+    pub fn pose(&self) -> Isometry3<f64> {
+        match self {
+            ObjectState::Screwdriver { orientation, .. } => {
+                let [x, y, z] = screwdriver::PIVOT;
+                Isometry3::from_parts(Translation3::new(x, y, z), *orientation)
+            }
+            ObjectState::Card { pose, .. } => *pose,
+        }
+    }
+
+    /// State coordinates: `(roll, pitch, yaw)` or `(x, y, θ)`, angles unwrapped.
+    pub fn coords(&self) -> [f64; 3] {
+        match self {
+            ObjectState::Screwdriver { orientation, yaw } => {
+                let e = screwdriver::euler_xyz(orientation.to_rotation_matrix().matrix());
+                [e[0], e[1], *yaw]
+            }
+            ObjectState::Card { pose, theta } => [pose.translation.x, pose.translation.y, *theta],
+        }
+    }
+
+    /// Task validity: screwdriver cap within 0.02 m of nominal; card still lying on the table
+    /// (centre within 5 mm of its resting height).
+    pub fn valid(&self) -> bool {
+        match self {
+            ObjectState::Screwdriver { orientation, .. } => {
+                screwdriver::is_valid(&orientation.to_rotation_matrix())
+            }
+            ObjectState::Card { pose, .. } => (pose.translation.z - card::INITIAL_CENTER[2]).abs() <= 5e-3,
+        }
+    }
+
+    /// Apply a world-frame increment: `ω` (screwdriver) or `(δp, ω)` (card).
+    fn apply(&mut self, dq: &[f64]) {
+        match self {
+            ObjectState::Screwdriver { orientation, yaw } => {
+                let w = Vector3::new(dq[0], dq[1], dq[2]);
+                let before = screwdriver::euler_xyz(orientation.to_rotation_matrix().matrix())[2];
+                let mut next = UnitQuaternion::from_scaled_axis(w) * *orientation;
+                next.renormalize();
+                let after = screwdriver::euler_xyz(next.to_rotation_matrix().matrix())[2];
+                *yaw += wrap_angle(after - before);
+                *orientation = next;
+            }
+            ObjectState::Card { pose, theta } => {
+                let before = heading(&pose.rotation);
+                pose.translation.vector += Vector3::new(dq[0], dq[1], dq[2]);
+                let mut rot = UnitQuaternion::from_scaled_axis(Vector3::new(dq[3], dq[4], dq[5])) * pose.rotation;
+                rot.renormalize();
+                pose.rotation = rot;
+                *theta += wrap_angle(heading(&rot) - before);
+            }
+        }
+    }
+}
+
+/// Something noteworthy about a step that did not stop it.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "kind", rename_all = "snake_case")]
+pub enum StepFlag {
+    /// Clarabel returned `AlmostSolved` (reduced accuracy) at this sub-step; the step was applied.
+    ReducedAccuracy {
+        /// Sub-step index within the action.
+        substep: usize,
+    },
+    /// The screwdriver's roll or pitch passed its ±1.57 joint limit (not modelled as a stop).
+    TiltLimit,
+}
+
+/// What one action did.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct StepReport {
+    /// Sub-steps solved (fewer than `substeps` when stopped early).
+    pub substeps_run: usize,
+    /// Contacts of the last solved sub-step with their forces.
+    pub contacts: Vec<ContactReport>,
+    /// Deepest penetration among fingertip/object/table pairs after the action (m, ≥ 0).
+    pub max_penetration: f64,
+    /// Interior-point iterations summed over the sub-steps.
+    pub iterations: u32,
+    /// Warnings that did not stop the step.
+    pub flags: Vec<StepFlag>,
+}
+
+/// Errors from the world.
+#[derive(Debug, thiserror::Error)]
+pub enum WorldError {
+    /// The action has the wrong length for the scene.
+    #[error("action has {got} numbers but the {scene} task needs {expected}")]
+    ActionLength {
+        /// Scene name.
+        scene: &'static str,
+        /// Expected length.
+        expected: usize,
+        /// Given length.
+        got: usize,
+    },
+    /// A state row has the wrong length for the scene.
+    #[error("state has {got} numbers but the {scene} task needs {expected}")]
+    StateLength {
+        /// Scene name.
+        scene: &'static str,
+        /// Expected length.
+        expected: usize,
+        /// Given length.
+        got: usize,
+    },
+    /// A number in an action, target or state is NaN or infinite.
+    #[error("{what} entry {index} is not finite ({value})")]
+    NonFinite {
+        /// Which input.
+        what: &'static str,
+        /// Index in it.
+        index: usize,
+        /// The value.
+        value: f64,
+    },
+    /// Clarabel did not solve a sub-step; the world keeps the state from before that sub-step.
+    #[error("contact solve failed at sub-step {substep}: Clarabel status {status}")]
+    Solver {
+        /// Sub-step index within the action.
+        substep: usize,
+        /// Clarabel's status.
+        status: String,
+    },
+    /// Clarabel rejected the problem data (a defect in the world).
+    #[error("contact program rejected by Clarabel: {0}")]
+    Setup(String),
+}
+
+/// The simulated hand and object.
+#[derive(Debug, Clone)]
+pub struct World {
+    scene: SceneKind,
+    hand: HandModel,
+    base: Isometry3<f64>,
+    params: WorldParams,
+    joints: HandJoints,
+    object: ObjectState,
+    object_body: Body,
+    table: Option<Body>,
+    last_contacts: Vec<ContactReport>,
+}
+
+fn check_finite(what: &'static str, v: &[f64]) -> Result<(), WorldError> {
+    match v.iter().position(|x| !x.is_finite()) {
+        Some(index) => Err(WorldError::NonFinite { what, index, value: v[index] }),
+        None => Ok(()),
+    }
+}
+
+impl World {
+    /// A scene at its default joints and initial object pose, with default parameters.
+    pub fn new(scene: SceneKind) -> World {
+        World::with_model(scene, HandModel::allegro_v4(), WorldParams::for_scene(scene))
+    }
+
+    /// A scene with a given hand description and parameters.
+    pub fn with_model(scene: SceneKind, hand: HandModel, params: WorldParams) -> World {
+        let joints = scene.default_joints();
+        let (object_body, table) = match scene {
+            SceneKind::Screwdriver => (Body::screwdriver(), None),
+            SceneKind::Card => (Body::card(), Some(Body::table())),
+        };
+        World {
+            scene,
+            base: scene.hand_base(),
+            hand,
+            params,
+            joints,
+            object: ObjectState::initial(scene),
+            object_body,
+            table,
+            last_contacts: Vec::new(),
+        }
+    }
+
+    /// The scene.
+    pub fn scene(&self) -> SceneKind {
+        self.scene
+    }
+
+    /// The parameters.
+    pub fn params(&self) -> &WorldParams {
+        &self.params
+    }
+
+    /// The hand description.
+    pub fn hand_model(&self) -> &HandModel {
+        &self.hand
+    }
+
+    /// The hand base pose.
+    pub fn hand_base(&self) -> Isometry3<f64> {
+        self.base
+    }
+
+    /// All sixteen joints (non-task fingers stay at their defaults).
+    pub fn joints(&self) -> HandJoints {
+        self.joints
+    }
+
+    /// The task fingers' joints in `CONTRACTS.md` §2 order (12 or 8).
+    pub fn task_joints(&self) -> Vec<f64> {
+        self.scene.task_fingers().iter().flat_map(|f| self.joints[f.index()]).collect()
+    }
+
+    /// The object's configuration.
+    pub fn object(&self) -> &ObjectState {
+        &self.object
+    }
+
+    /// The object body's parts (for drawing and distance queries).
+    pub fn object_body(&self) -> &Body {
+        &self.object_body
+    }
+
+    /// Raw state row: task joints then `(roll, pitch, yaw)` or `(x, y, θ)` (15 or 11 numbers).
+    pub fn state(&self) -> Vec<f64> {
+        let mut s = self.task_joints();
+        s.extend(self.object.coords());
+        s
+    }
+
+    /// Set the state from a raw row (task joints then object coordinates). The card is placed
+    /// flat at its resting height.
+    pub fn set_state(&mut self, state: &[f64]) -> Result<(), WorldError> {
+        let n = self.scene.state_dim();
+        if state.len() != n {
+            return Err(WorldError::StateLength { scene: self.scene.name(), expected: n, got: state.len() });
+        }
+        check_finite("state", state)?;
+        for (k, f) in self.scene.task_fingers().iter().enumerate() {
+            let q = [state[4 * k], state[4 * k + 1], state[4 * k + 2], state[4 * k + 3]];
+            self.joints[f.index()] = self.hand.clamp_to_limits(*f, &q);
+        }
+        let a = self.scene.action_dim();
+        self.object = ObjectState::from_coords(self.scene, [state[a], state[a + 1], state[a + 2]]);
+        self.last_contacts.clear();
+        Ok(())
+    }
+
+    /// Set all joints directly (clamped to limits).
+    pub fn set_joints(&mut self, joints: &HandJoints) {
+        for f in Finger::ALL {
+            self.joints[f.index()] = self.hand.clamp_to_limits(f, &joints[f.index()]);
+        }
+    }
+
+    /// Set the object's configuration directly.
+    pub fn set_object(&mut self, object: ObjectState) {
+        self.object = object;
+    }
+
+    /// Task validity of the current state (see [`ObjectState::valid`]).
+    pub fn valid(&self) -> bool {
+        self.object.valid()
+    }
+
+    /// Contacts of the last solved sub-step.
+    pub fn last_contacts(&self) -> &[ContactReport] {
+        &self.last_contacts
+    }
+
+    /// World-frame fingertip sphere centres of all four fingers.
+    pub fn tip_centers(&self) -> [Point3<f64>; 4] {
+        self.hand.tip_centers(&self.base, &self.joints)
+    }
+
+    /// Signed distance from each task finger's tip sphere to the object (task order).
+    pub fn tip_distances(&self) -> Vec<f64> {
+        let pose = self.object.pose();
+        self.scene
+            .task_fingers()
+            .iter()
+            .map(|f| {
+                let c = self.hand.tip_center(&self.base, *f, &self.joints[f.index()]);
+                self.object_body.sphere_distance(&pose, &c, self.hand.tip_radius)
+            })
+            .collect()
+    }
+
+    /// Deepest current penetration (m, ≥ 0) among tip/object, tip/table and card/table pairs.
+    pub fn max_penetration(&self) -> f64 {
+        let pose = self.object.pose();
+        let r = self.hand.tip_radius;
+        let mut worst: f64 = 0.0;
+        for f in self.scene.task_fingers() {
+            let c = self.hand.tip_center(&self.base, *f, &self.joints[f.index()]);
+            worst = worst.max(-self.object_body.sphere_distance(&pose, &c, r));
+            if let Some(t) = &self.table {
+                worst = worst.max(-t.sphere_distance(&Isometry3::identity(), &c, r));
+            }
+        }
+        if self.table.is_some() {
+            for p in contacts::card_table_vertices(&pose) {
+                worst = worst.max(card::TABLE_TOP - p.z);
+            }
+        }
+        worst
+    }
+
+    /// Execute one action: joint deltas for the task fingers (`CONTRACTS.md` §2 order) relative
+    /// to the current measured joints, held for one action duration.
+    pub fn step_action(&mut self, dq: &[f64]) -> Result<StepReport, WorldError> {
+        let n = self.scene.action_dim();
+        if dq.len() != n {
+            return Err(WorldError::ActionLength { scene: self.scene.name(), expected: n, got: dq.len() });
+        }
+        check_finite("action", dq)?;
+        let mut targets = self.joints;
+        for (k, f) in self.scene.task_fingers().iter().enumerate() {
+            for j in 0..4 {
+                targets[f.index()][j] += dq[4 * k + j];
+            }
+        }
+        self.step_targets(&targets)
+    }
+
+    /// Execute one action given absolute joint targets for all sixteen joints (targets of
+    /// non-task fingers are ignored: they hold their defaults). Targets are clamped to limits.
+    pub fn step_targets(&mut self, targets: &HandJoints) -> Result<StepReport, WorldError> {
+        check_finite("target", targets.as_flattened())?;
+        let fingers = self.scene.task_fingers();
+        let q_cmd: Vec<f64> = fingers.iter().flat_map(|f| self.hand.clamp_to_limits(*f, &targets[f.index()])).collect();
+        let mut report = StepReport {
+            substeps_run: 0,
+            contacts: Vec::new(),
+            max_penetration: 0.0,
+            iterations: 0,
+            flags: Vec::new(),
+        };
+        for substep in 0..self.params.substeps.max(1) {
+            let (dx, contacts, iters, status) = self.solve_substep(&q_cmd, substep)?;
+            report.substeps_run += 1;
+            report.iterations += iters;
+            if status == SolverStatus::AlmostSolved {
+                report.flags.push(StepFlag::ReducedAccuracy { substep });
+            }
+            self.apply_increment(&dx);
+            self.last_contacts = contacts;
+            let norm = dx.iter().map(|v| v * v).sum::<f64>().sqrt();
+            if norm < self.params.early_stop {
+                break;
+            }
+        }
+        report.contacts = self.last_contacts.clone();
+        report.max_penetration = self.max_penetration();
+        if let ObjectState::Screwdriver { .. } = self.object {
+            let [roll, pitch, _] = self.object.coords();
+            if roll.abs() > screwdriver::TILT_LIMIT || pitch.abs() > screwdriver::TILT_LIMIT {
+                report.flags.push(StepFlag::TiltLimit);
+            }
+        }
+        Ok(report)
+    }
+
+    fn task_frames(&self) -> Vec<FingerFrames> {
+        self.scene
+            .task_fingers()
+            .iter()
+            .map(|f| self.hand.finger_frames(&self.base, *f, &self.joints[f.index()]))
+            .collect()
+    }
+
+    /// Object block of P (regularised mass plus damping over h) and the gravity force term.
+    fn object_block(&self) -> (DMatrix<f64>, Vec<f64>) {
+        let p = &self.params;
+        let h = p.h();
+        let g = p.gravity;
+        match &self.object {
+            ObjectState::Screwdriver { orientation, .. } => {
+                let r = orientation.to_rotation_matrix();
+                let i_body = Matrix3::from_diagonal(&Vector3::from(screwdriver::INERTIA_PIVOT));
+                let max_i = screwdriver::INERTIA_PIVOT.iter().copied().fold(0.0, f64::max);
+                let eps = regulariser(p.kp, p.mass_scale, max_i);
+                let m_world = r.matrix() * i_body * r.matrix().transpose() * eps;
+                // Joint-space damping D on (roll, pitch, yaw) mapped to ω: ω = E θ̇, so the
+                // damping quadratic form is E⁻ᵀ D E⁻¹.
+                let [roll, pitch, _] = self.object.coords();
+                let e = Matrix3::from_columns(&[
+                    Vector3::x(),
+                    Rotation3::from_axis_angle(&Vector3::x_axis(), roll) * Vector3::y(),
+                    (Rotation3::from_axis_angle(&Vector3::x_axis(), roll)
+                        * Rotation3::from_axis_angle(&Vector3::y_axis(), pitch))
+                        * Vector3::z(),
+                ]);
+                let e_inv = e.try_inverse().unwrap_or_else(Matrix3::identity);
+                let d = Matrix3::from_diagonal(&Vector3::from(p.damping));
+                let damp = e_inv.transpose() * d * e_inv / h;
+                let block = m_world + damp + Matrix3::identity() * 1e-9;
+                let com = r * Vector3::new(0.0, 0.0, screwdriver::COM_HEIGHT);
+                let torque = com.cross(&Vector3::new(0.0, 0.0, -screwdriver::MASS * g));
+                (DMatrix::from_iterator(3, 3, block.iter().copied()), torque.iter().copied().collect())
+            }
+            ObjectState::Card { pose, .. } => {
+                let inertia = card::inertia();
+                let max_m = card::MASS.max(inertia.iter().copied().fold(0.0, f64::max));
+                let eps = regulariser(p.kp, p.mass_scale, max_m);
+                let rot = pose.rotation.to_rotation_matrix();
+                let i_world = rot.matrix() * Matrix3::from_diagonal(&Vector3::from(inertia)) * rot.matrix().transpose();
+                let mut block = DMatrix::zeros(6, 6);
+                for i in 0..3 {
+                    block[(i, i)] = eps * card::MASS + p.damping[0] / h + 1e-9;
+                    for j in 0..3 {
+                        block[(3 + i, 3 + j)] = eps * i_world[(i, j)];
+                    }
+                    block[(3 + i, 3 + i)] += p.damping[0] / h + 1e-9;
+                }
+                (block, vec![0.0, 0.0, -card::MASS * g, 0.0, 0.0, 0.0])
+            }
+        }
+    }
+
+    #[allow(clippy::type_complexity)]
+    fn solve_substep(
+        &self,
+        q_cmd: &[f64],
+        substep: usize,
+    ) -> Result<(Vec<f64>, Vec<ContactReport>, u32, SolverStatus), WorldError> {
+        let fingers = self.scene.task_fingers();
+        let n_a = 4 * fingers.len();
+        let frames = self.task_frames();
+        let names: Vec<&'static str> = fingers.iter().map(|f| f.name()).collect();
+        let pose = self.object.pose();
+        let dofs = match self.object {
+            ObjectState::Screwdriver { .. } => contacts::ObjectDofs::Pivot { pivot: screwdriver::pivot() },
+            ObjectState::Card { pose, .. } => contacts::ObjectDofs::Free { origin: Point3::from(pose.translation.vector) },
+        };
+        let cands = contacts::candidates(&contacts::ContactInputs {
+            scene: self.scene,
+            hand: &self.hand,
+            frames: &frames,
+            finger_names: &names,
+            object: &self.object_body,
+            object_pose: &pose,
+            dofs,
+            table: self.table.as_ref(),
+            margin: self.params.contact_margin,
+            finger_friction: self.params.finger_friction,
+            finger_table_friction: self.params.finger_table_friction,
+            table_friction: self.params.table_friction,
+        });
+        let n = n_a + dofs.count();
+        let (block, force_u) = self.object_block();
+        let mut p = DMatrix::zeros(n, n);
+        let mut c = vec![0.0; n];
+        let q_now = self.task_joints();
+        for i in 0..n_a {
+            p[(i, i)] = self.params.kp;
+            c[i] = -self.params.kp * (q_cmd[i] - q_now[i]);
+        }
+        p.view_mut((n_a, n_a), (dofs.count(), dofs.count())).copy_from(&block);
+        for (i, f) in force_u.iter().enumerate() {
+            c[n_a + i] = -f;
+        }
+        let bounds: Vec<(f64, f64)> = if self.params.enforce_joint_limits {
+            fingers
+                .iter()
+                .enumerate()
+                .flat_map(|(k, f)| {
+                    let lim = self.hand.joint_limits(*f);
+                    let q = &q_now;
+                    (0..4).map(move |j| (lim[j].0 - q[4 * k + j], lim[j].1 - q[4 * k + j]))
+                })
+                .map(|(lo, hi)| (lo.min(0.0), hi.max(0.0)))
+                .collect()
+        } else {
+            Vec::new()
+        };
+        let rows: Vec<socp::ConeRow> = cands.iter().map(|c| c.row.clone()).collect();
+        let sol = socp::solve(&socp::Program { p: &p, c: &c, cones: &rows, bounds: &bounds })
+            .map_err(WorldError::Setup)?;
+        match sol.status {
+            SolverStatus::Solved | SolverStatus::AlmostSolved => {}
+            other => return Err(WorldError::Solver { substep, status: format!("{other:?}") }),
+        }
+        if sol.x.iter().any(|v| !v.is_finite()) {
+            return Err(WorldError::Solver { substep, status: "non-finite solution".into() });
+        }
+        let reports = cands
+            .iter()
+            .zip(&sol.forces_on_a)
+            .map(|(cand, f_a)| {
+                // Force exerted by A (finger or card) on B (the part) is −(force on A).
+                let f = -f_a;
+                ContactReport {
+                    finger: cand.finger.to_string(),
+                    part: cand.part.to_string(),
+                    point: [cand.point.x, cand.point.y, cand.point.z],
+                    normal: [cand.row.normal.x, cand.row.normal.y, cand.row.normal.z],
+                    force: [f.x, f.y, f.z],
+                    phi: cand.row.phi,
+                }
+            })
+            .collect();
+        Ok((sol.x, reports, sol.iterations, sol.status))
+    }
+
+    fn apply_increment(&mut self, dx: &[f64]) {
+        let fingers = self.scene.task_fingers();
+        for (k, f) in fingers.iter().enumerate() {
+            for j in 0..4 {
+                self.joints[f.index()][j] += dx[4 * k + j];
+            }
+        }
+        self.object.apply(&dx[4 * fingers.len()..]);
+    }
+}
+
+/// qsim's mass scaling: `ε` such that the largest mass entry becomes `kp / s` (spec §1.1).
+/// A non-positive or non-finite `s` means "use the true mass" (ε = 1).
+fn regulariser(kp: f64, s: f64, max_mass: f64) -> f64 {
+    if s.is_finite() && s > 0.0 && max_mass > 0.0 { kp / (s * max_mass) } else { 1.0 }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn wrap_and_unwrap_yaw() {
+        assert!((wrap_angle(3.0 * std::f64::consts::PI) - std::f64::consts::PI).abs() < 1e-12);
+        let mut o = ObjectState::initial(SceneKind::Screwdriver);
+        for _ in 0..40 {
+            o.apply(&[0.0, 0.0, -0.2]);
+        }
+        assert!((o.coords()[2] + 8.0).abs() < 1e-9, "{:?}", o.coords());
+    }
+
+    #[test]
+    fn state_round_trip() {
+        let mut w = World::new(SceneKind::Card);
+        let mut s = w.state();
+        assert_eq!(s.len(), 11);
+        s[8] = 0.01;
+        s[9] = -0.02;
+        s[10] = 0.1;
+        w.set_state(&s).unwrap();
+        let back = w.state();
+        for (a, b) in s.iter().zip(&back) {
+            assert!((a - b).abs() < 1e-12);
+        }
+        assert!(matches!(w.set_state(&s[..5]), Err(WorldError::StateLength { .. })));
+        assert!(matches!(w.step_action(&[0.0; 3]), Err(WorldError::ActionLength { .. })));
+        assert!(matches!(w.step_action(&[f64::NAN; 8]), Err(WorldError::NonFinite { .. })));
+    }
+}
