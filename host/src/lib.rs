@@ -2,6 +2,7 @@
 
 pub mod cli;
 pub mod csvto;
+pub mod execute;
 pub mod geometry;
 pub mod kinematics;
 pub mod problems;

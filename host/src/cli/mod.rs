@@ -2,6 +2,8 @@
 
 use clap::{Parser, Subcommand};
 
+pub mod episode;
+
 /// DIPS: diffusion-informed probabilistic contact search for multi-finger manipulation.
 #[derive(Debug, Parser)]
 #[command(name = "dips", version, about)]
@@ -13,10 +15,15 @@ pub struct Cli {
 
 /// Top-level commands.
 #[derive(Debug, Subcommand)]
-pub enum Command {}
+pub enum Command {
+    /// One closed-loop episode in the quasi-static world; writes DIR/result.json.
+    Episode(episode::EpisodeArgs),
+}
 
 /// Parse the process arguments and run the command.
 pub fn main() -> anyhow::Result<()> {
     let cli = Cli::parse();
-    match cli.command {}
+    match cli.command {
+        Command::Episode(args) => episode::run(args),
+    }
 }

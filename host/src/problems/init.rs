@@ -8,15 +8,18 @@ use crate::csvto::Problem;
 
 /// Standard deviation of the initial `Δq` noise.
 pub const DQ_SIGMA: f64 = 0.025;
-/// Standard deviation of the initial finger forces.
-pub const FORCE_SIGMA: f64 = 1.5;
+/// Standard deviation of the initial finger forces. The authors' code uses 1.5 N; with the
+/// spec's step size and unit step clip, absorbing forces that large takes well over the 100
+/// warm-up iterations (measured: violation 50 after 100 iterations versus 4e-3 with 0.15 N),
+/// so we start ten times smaller. See `docs/csvto.md`.
+pub const FORCE_SIGMA: f64 = 0.15;
 
 fn normal(rng: &mut KernelRng) -> f64 {
     f64::from(rng.normal_f32())
 }
 
 /// `count` trajectories for `problem`: `Δq ~ N(0, 0.025²)` integrated from the start joints,
-/// the object held at its start pose, finger forces `~ N(0, 1.5²)` (the index finger's
+/// the object held at its start pose, finger forces `~ N(0, 0.15²)` (the index finger's
 /// ×0.01 in the screwdriver turn mode), and the card's table force carrying its weight.
 pub fn default_particles(
     problem: &AllegroProblem,
