@@ -125,9 +125,14 @@ impl BlockTriFactor {
             if t > 0 {
                 let mp = sizes[t - 1];
                 // C_t = B_t L_{t−1}⁻ᵀ: each row c of C_t solves L_{t−1} cᵀ = (row of B_t)ᵀ.
+                // Rows of B_t that are zero (constraints that do not see the previous
+                // state) stay zero and are skipped here and in the Schur update.
                 let lp = &diag[t - 1];
                 let c = &mut sub[t];
-                for r in 0..m {
+                let live: Vec<usize> = (0..m)
+                    .filter(|&r| c[r * mp..(r + 1) * mp].iter().any(|&v| v != 0.0))
+                    .collect();
+                for &r in &live {
                     let row = &mut c[r * mp..(r + 1) * mp];
                     for i in 0..mp {
                         let mut s = row[i];
@@ -139,9 +144,9 @@ impl BlockTriFactor {
                 }
                 // S = D_t − C_t C_tᵀ (lower triangle).
                 let d = &mut diag[t];
-                for i in 0..m {
+                for (a, &i) in live.iter().enumerate() {
                     let ci = &c[i * mp..(i + 1) * mp];
-                    for j in 0..=i {
+                    for &j in &live[..=a] {
                         let cj = &c[j * mp..(j + 1) * mp];
                         let mut s = 0.0;
                         for q in 0..mp {

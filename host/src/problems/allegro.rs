@@ -309,6 +309,30 @@ impl AllegroProblem {
         }
     }
 
+    /// Geometry of finger `i` at the joints `v[oq..oq+4]` and object pose `v[oo..oo+3]`,
+    /// computed in 7-wide dual numbers (the expensive kinematics and distance) and lifted
+    /// into the caller's wider scalar.
+    fn lifted_contact<S: Lift>(&self, i: usize, v: &[S; W], oq: usize, oo: usize) -> Contact<S> {
+        let vals: [f64; 7] = std::array::from_fn(|k| {
+            if k < 4 { v[oq + k].val() } else { v[oo + k - 4].val() }
+        });
+        let d: [Dual<7>; 7] = seed(&vals);
+        let c = self.contact(i, &[d[0], d[1], d[2], d[3]], &[d[4], d[5], d[6]]);
+        let l = |x: Dual<7>| S::lift(x, oq, oo);
+        let lv = |x: &V3<Dual<7>>| V3(x.0.map(l));
+        Contact {
+            sdf: l(c.sdf),
+            normal: lv(&c.normal),
+            surface: lv(&c.surface),
+            finger_point: lv(&c.finger_point),
+            frames: super::fk::Frames {
+                origins: c.frames.origins.each_ref().map(lv),
+                axes: c.frames.axes.each_ref().map(lv),
+                tip: lv(&c.frames.tip),
+            },
+        }
+    }
+
     /// Signed distance of finger `i`'s sphere at `(q, o)` (values only).
     pub fn finger_sdf(&self, i: usize, q: &[f64; 4], o: &[f64; 3]) -> f64 {
         self.contact(i, q, o).sdf
@@ -339,15 +363,14 @@ impl AllegroProblem {
     }
 
     /// Step terms of contact finger `i`.
-    fn contact_terms<S: Scalar>(&self, i: usize, v: &[S; W]) -> ContactTerms<S> {
+    fn contact_terms<S: Lift>(&self, i: usize, v: &[S; W]) -> ContactTerms<S> {
         let qt = [v[0], v[1], v[2], v[3]];
         let ot = [v[4], v[5], v[6]];
         let qn = [v[7], v[8], v[9], v[10]];
         let on = [v[11], v[12], v[13]];
         let dq = [v[14], v[15], v[16], v[17]];
         let f = V3([v[18], v[19], v[20]]);
-        let ct = self.contact(i, &qt, &ot);
-        let cn = self.contact(i, &qn, &on);
+        let (ct, cn) = (self.lifted_contact::<S>(i, v, 0, 4), self.lifted_contact::<S>(i, v, 7, 11));
         // Rolling: the finger's contact point moves with the object's material point.
         let jt = ct.frames.point_jacobian(&ct.finger_point);
         let mut dfinger = V3::zero();
@@ -442,6 +465,27 @@ impl AllegroProblem {
     /// Regrasp target distance (m) of finger `i` at `(q, o)`.
     pub fn target_distance(&self, i: usize, q: &[f64; 4], o: &[f64; 3]) -> f64 {
         self.target_error(i, q, o).sqrt()
+    }
+}
+
+/// Scalars that can take a 7-wide dual computed on `(q, o)` at column offsets
+/// `(oq, oo)` of their own seeding.
+trait Lift: Scalar {
+    fn lift(x: Dual<7>, oq: usize, oo: usize) -> Self;
+}
+
+impl Lift for f64 {
+    fn lift(x: Dual<7>, _oq: usize, _oo: usize) -> Self {
+        x.v
+    }
+}
+
+impl Lift for D21 {
+    fn lift(x: Dual<7>, oq: usize, oo: usize) -> Self {
+        let mut d = [0.0; W];
+        d[oq..oq + 4].copy_from_slice(&x.d[..4]);
+        d[oo..oo + 3].copy_from_slice(&x.d[4..]);
+        Dual { v: x.v, d }
     }
 }
 
