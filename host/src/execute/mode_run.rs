@@ -154,7 +154,7 @@ pub fn run_mode(
         let solve_s = t0.elapsed().as_secs_f64();
         let best = &particles[0];
         let dq: Vec<f64> = (0..nq).map(|c| best[problem.dq_col(c / 4, c % 4)]).collect();
-        let planned_state = best[..problem.state_dim()].to_vec();
+        let planned_state = problem.to_world_units(&best[..problem.state_dim()]);
         world.step_action(&dq)?;
         let state = world.state();
         let tip_sdf = world.tip_distances();

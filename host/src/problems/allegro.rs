@@ -9,7 +9,8 @@
 //! Constraints of step `t` (between `s_t` and `s_{t+1}`):
 //! - contact finger: `sdf(s_{t+1}) = 0`; rolling (no slip of the contact point, 2 rows, at
 //!   `s_t`); joint impedance balance `−J_cᵀf + K_p(q_t + Δq_t − q_{t+1}) = 0` (4 rows, at
-//!   `s_{t+1}`); friction pyramid `k = 8` on `f` in the contact frame at `s_{t+1}`;
+//!   `s_{t+1}`); friction pyramid `k = 8` on `f` in the contact frame at `s_{t+1}` and a
+//!   minimum normal force;
 //! - object: screwdriver torques about the pivot with gravity (3 rows); card force balance
 //!   with the table force and its sliding friction `‖f_env,xy‖ = μ_table f_env,z` (4 rows);
 //!   with no finger in contact the object holds still (and the card's table force carries
@@ -35,6 +36,16 @@ pub const REGRASP_CLEARANCE: f64 = 0.015;
 pub const PLANNER_FRICTION: f64 = 0.95;
 /// Number of friction-pyramid faces.
 pub const PYRAMID_FACES: usize = 8;
+/// Smallest normal force of a contact finger (N). Without it a finger's force can reach the
+/// pyramid's apex, where all faces are active and, with squared slacks, pin the force in
+/// the tangent space (the card then cannot be pushed); MFTO uses 0.1 N for its fingers.
+pub const MIN_NORMAL_FORCE: f64 = 0.05;
+/// Unit of the card's x and y inside the problem (m per variable unit). States given to and
+/// taken from the problem are always in metres ([`AllegroProblem::to_problem_units`],
+/// [`AllegroProblem::to_world_units`]). Centimetres (0.01) make the card cheap to move in
+/// the projector's Euclidean metric, but measured in the world the pushes then moved the
+/// card less (4 mm instead of 15 mm per single-finger mode), so metres it is.
+pub const CARD_POS_UNIT: f64 = 1.0;
 /// Joint-limit margin for the planner's bounds.
 pub const JOINT_MARGIN: f64 = 0.05;
 /// Force bound per component (N).
@@ -96,6 +107,8 @@ pub struct AllegroProblem {
     dq_bound: f64,
     /// Goal weights (terminal, running).
     goal_weights: (f64, f64),
+    /// Metres (or radians) per problem unit of each object coordinate.
+    units: [f64; 3],
 }
 
 /// Object rotation and origin for the object coordinates `o`.
@@ -107,7 +120,11 @@ fn object_pose<S: Scalar>(task: SceneKind, o: &[S; 3]) -> (M3<S>, V3<S>) {
         ),
         SceneKind::Card => (
             M3::rot_z(o[2]),
-            V3([o[0], o[1], S::cst(scenes::card::INITIAL_CENTER[2])]),
+            V3([
+                o[0] * CARD_POS_UNIT,
+                o[1] * CARD_POS_UNIT,
+                S::cst(scenes::card::INITIAL_CENTER[2]),
+            ]),
         ),
     }
 }
@@ -145,6 +162,8 @@ struct ContactTerms<S> {
     balance: [S; 4],
     wrench: [S; 3],
     friction: [S; PYRAMID_FACES],
+    /// `f_min + n·f` (≤ 0: the finger presses with at least `f_min`).
+    min_normal: S,
 }
 
 impl AllegroProblem {
@@ -207,7 +226,7 @@ impl AllegroProblem {
         }
         let obj_bound = match task {
             SceneKind::Screwdriver => [10.0 * PI; 3],
-            SceneKind::Card => [1.0, 1.0, 10.0 * PI],
+            SceneKind::Card => [1.0 / CARD_POS_UNIT, 1.0 / CARD_POS_UNIT, 10.0 * PI],
         };
         for k in 0..3 {
             lower[4 * nf + k] = -obj_bound[k];
@@ -221,6 +240,16 @@ impl AllegroProblem {
             SceneKind::Screwdriver => (10.0, 3.0),
             SceneKind::Card => (15_000.0, 15_000.0),
         };
+        let units = match task {
+            SceneKind::Screwdriver => [1.0; 3],
+            SceneKind::Card => [CARD_POS_UNIT, CARD_POS_UNIT, 1.0],
+        };
+        let mut start = spec.start.clone();
+        let mut goal = spec.goal;
+        for k in 0..3 {
+            start[4 * nf + k] /= units[k];
+            goal[k] /= units[k];
+        }
         Self {
             task,
             contact,
@@ -231,8 +260,9 @@ impl AllegroProblem {
             radius: hand.tip_radius,
             kp,
             horizon: spec.horizon,
-            start: spec.start.clone(),
-            goal: spec.goal,
+            start,
+            goal,
+            units,
             targets,
             lower,
             upper,
@@ -333,9 +363,43 @@ impl AllegroProblem {
         }
     }
 
-    /// Signed distance of finger `i`'s sphere at `(q, o)` (values only).
+    /// A state `[q, o]` in metres and radians converted to problem units.
+    pub fn to_problem_units(&self, state: &[f64]) -> Vec<f64> {
+        let mut s = state.to_vec();
+        let nq = 4 * self.nf;
+        for k in 0..3 {
+            s[nq + k] /= self.units[k];
+        }
+        s
+    }
+
+    /// A state `[q, o]` in problem units converted to metres and radians.
+    pub fn to_world_units(&self, state: &[f64]) -> Vec<f64> {
+        let mut s = state.to_vec();
+        let nq = 4 * self.nf;
+        for k in 0..3 {
+            s[nq + k] *= self.units[k];
+        }
+        s
+    }
+
+    /// Outward object normal at finger `i`'s contact at `(q, o)` (world frame; `o` in metres).
+    pub fn contact_normal(&self, i: usize, q: &[f64; 4], o: &[f64; 3]) -> [f64; 3] {
+        self.contact(i, q, &self.obj_units(o)).normal.0
+    }
+
+    /// Index of task finger `i` among the contact fingers, if it is in contact.
+    pub fn contact_slot(&self, i: usize) -> Option<usize> {
+        self.slot[i]
+    }
+
+    /// Signed distance of finger `i`'s sphere at `(q, o)` (`o` in metres and radians).
     pub fn finger_sdf(&self, i: usize, q: &[f64; 4], o: &[f64; 3]) -> f64 {
-        self.contact(i, q, o).sdf
+        self.contact(i, q, &self.obj_units(o)).sdf
+    }
+
+    fn obj_units(&self, o: &[f64; 3]) -> [f64; 3] {
+        std::array::from_fn(|k| o[k] / self.units[k])
     }
 
     /// Displacement of the object material point at `p` from pose `ot` to `on`.
@@ -356,7 +420,11 @@ impl AllegroProblem {
             SceneKind::Card => {
                 let (_, origin) = object_pose(self.task, ot);
                 let w = V3([S::cst(0.0), S::cst(0.0), on[2] - ot[2]]);
-                let v = V3([on[0] - ot[0], on[1] - ot[1], S::cst(0.0)]);
+                let v = V3([
+                    (on[0] - ot[0]) * CARD_POS_UNIT,
+                    (on[1] - ot[1]) * CARD_POS_UNIT,
+                    S::cst(0.0),
+                ]);
                 v.add(&w.cross(&p.sub(&origin)))
             }
         }
@@ -404,6 +472,7 @@ impl AllegroProblem {
             balance,
             wrench,
             friction,
+            min_normal: c + MIN_NORMAL_FORCE,
         }
     }
 
@@ -444,7 +513,7 @@ impl AllegroProblem {
 
     fn ineq_count(&self, t: usize) -> usize {
         let nr = self.nf - self.nc;
-        PYRAMID_FACES * self.nc + if t + 1 < self.horizon { nr } else { 0 }
+        (PYRAMID_FACES + 1) * self.nc + if t + 1 < self.horizon { nr } else { 0 }
     }
 
     /// Regrasp target cost of finger `i` at `(q, o)`: `‖p^obj − p̄‖²` with the object frame
@@ -464,7 +533,7 @@ impl AllegroProblem {
 
     /// Regrasp target distance (m) of finger `i` at `(q, o)`.
     pub fn target_distance(&self, i: usize, q: &[f64; 4], o: &[f64; 3]) -> f64 {
-        self.target_error(i, q, o).sqrt()
+        self.target_error(i, q, &self.obj_units(o)).sqrt()
     }
 }
 
@@ -569,12 +638,12 @@ impl Problem for AllegroProblem {
                     1.0,
                 );
             }
-            for j in 0..PYRAMID_FACES {
-                out.ineq[q] = terms.friction[j].v;
+            for term in terms.friction.iter().chain([&terms.min_normal]) {
+                out.ineq[q] = term.v;
                 scatter(
                     &mut out.jac_ineq[q * width..(q + 1) * width],
                     &map,
-                    &terms.friction[j].d,
+                    &term.d,
                     1.0,
                 );
                 q += 1;
@@ -616,14 +685,17 @@ impl Problem for AllegroProblem {
                         out.eq[rr] = wrench_rows[k] + fe[k] + weight[k];
                         out.jac_eq[rr * width + ds + self.env_col(k)] += 1.0;
                     }
-                    // Sliding friction of the table: ‖f_xy‖ − μ f_z = 0.
+                    // Sliding friction of the table (spec §2.2): ‖f_xy‖ − μ f_z = 0. Its
+                    // direction is left free: rows tying it to the displacement Δ are
+                    // degenerate at Δ = 0 and pin the card in the tangent space (see
+                    // docs/csvto.md).
                     let rr = obj_row + 3;
                     let nxy = (fe[0] * fe[0] + fe[1] * fe[1] + 1e-12).sqrt();
-                    out.eq[rr] = nxy - scenes::card::TABLE_FRICTION * fe[2];
+                    let mu = scenes::card::TABLE_FRICTION;
+                    out.eq[rr] = nxy - mu * fe[2];
                     out.jac_eq[rr * width + ds + self.env_col(0)] = fe[0] / nxy;
                     out.jac_eq[rr * width + ds + self.env_col(1)] = fe[1] / nxy;
-                    out.jac_eq[rr * width + ds + self.env_col(2)] =
-                        -scenes::card::TABLE_FRICTION;
+                    out.jac_eq[rr * width + ds + self.env_col(2)] = -mu;
                 }
             }
         } else {
@@ -724,13 +796,14 @@ impl Problem for AllegroProblem {
                     g[nq + 3 + k] += 20.0 * dq;
                 }
                 for k in 0..3 {
+                    let u2 = self.units[k] * self.units[k];
                     let d = row[nq + k] - prev[nq + k];
-                    j += d * d;
-                    g[nq + k] += 2.0 * d;
-                    dprev[nq + k] = -2.0 * d;
+                    j += u2 * d * d;
+                    g[nq + k] += 2.0 * u2 * d;
+                    dprev[nq + k] = -2.0 * u2 * d;
                     let e = row[nq + k] - self.goal[k];
-                    j += w_goal * e * e;
-                    g[nq + k] += 2.0 * w_goal * e;
+                    j += u2 * w_goal * e * e;
+                    g[nq + k] += 2.0 * u2 * w_goal * e;
                 }
             }
             if t > 0 {

@@ -130,15 +130,15 @@ fn cost_gradient_matches_finite_differences() {
 fn counts_match_the_spec_bookkeeping() {
     let hand = HandModel::allegro_v4();
     let p = AllegroProblem::new(&hand, &spec(Mode::Turn, 12));
-    // 3 contact fingers: 7 each + 3 torques; 8 friction faces each.
+    // 3 contact fingers: 7 each + 3 torques; 8 friction faces + min force each.
     assert_eq!(p.n_eq(0), 24);
-    assert_eq!(p.n_ineq(0), 24);
+    assert_eq!(p.n_ineq(0), 27);
     assert_eq!(p.row_dim(), 15 + 12 + 9);
     let p = AllegroProblem::new(&hand, &spec(Mode::IndexRegrasp, 12));
     assert_eq!(p.n_eq(0), 14 + 3 + 4);
     assert_eq!(p.n_eq(11), 14 + 3 + 4 + 1);
-    assert_eq!(p.n_ineq(0), 16 + 1);
-    assert_eq!(p.n_ineq(11), 16);
+    assert_eq!(p.n_ineq(0), 18 + 1);
+    assert_eq!(p.n_ineq(11), 18);
 }
 
 #[test]
@@ -189,4 +189,75 @@ fn diag_turn_convergence() {
             parts[0][11 * n + 14]
         );
     }
+}
+
+#[test]
+#[ignore = "diagnostic"]
+fn diag_card_both() {
+    use crate::csvto::linearization::{Layout, for_each_step};
+    let hand = HandModel::allegro_v4();
+    let mode = match std::env::var("DIAG_MODE").as_deref() {
+        Ok("index") => Mode::CardIndex,
+        Ok("middle") => Mode::CardMiddle,
+        _ => Mode::CardBoth,
+    };
+    let mut s = spec(mode, 8);
+    s.goal = [0.0, -0.02, 0.0];
+    let p = AllegroProblem::new(&hand, &s);
+    let mut rng = KernelRng::seed_from_u64(3);
+    let mut parts = default_particles(&p, mode, 16, &mut rng);
+    let n = p.row_dim();
+    let aj: f64 = std::env::var("DIAG_AJ").ok().and_then(|v| v.parse().ok()).unwrap_or(1e-2);
+    let it: usize = std::env::var("DIAG_IT").ok().and_then(|v| v.parse().ok()).unwrap_or(150);
+    let settings = CsvtoSettings { alpha_j: aj, ..CsvtoSettings::default() };
+    let rep = solve(&p, &mut parts, it, &settings);
+    eprintln!("eq {:?} ineq {:?}", rep.max_eq_violation[0], rep.max_ineq_violation[0]);
+    let x = &parts[0];
+    for t in 0..8 {
+        let r = &x[t * n..(t + 1) * n];
+        eprintln!("t{t}: q {:?} o {:?} f {:?}", &r[0..8].iter().map(|v| (v * 1e3).round() / 1e3).collect::<Vec<_>>(), &r[8..11].iter().map(|v| (v * 1e4).round() / 1e4).collect::<Vec<_>>(), &r[19..].iter().map(|v| (v * 1e3).round() / 1e3).collect::<Vec<_>>());
+    }
+    let layout = Layout::of(&p);
+    let mut sc = StepConstraints::default();
+    for_each_step(&p, &layout, x, &mut sc, |t, c| {
+        eprintln!("t{t} eq {:?}", c.eq.iter().map(|v| (v * 1e4).round() / 1e4).collect::<Vec<_>>());
+    });
+}
+
+#[test]
+#[ignore = "diagnostic"]
+fn diag_card_tangent() {
+    use crate::csvto::linearization::{Layout, Linearization, initial_slack};
+    let hand = HandModel::allegro_v4();
+    let mut s = spec(Mode::CardBoth, 8);
+    s.goal = [0.0, -0.02, 0.0];
+    let p = AllegroProblem::new(&hand, &s);
+    let mut rng = KernelRng::seed_from_u64(3);
+    let mut parts = default_particles(&p, Mode::CardBoth, 4, &mut rng);
+    let settings = CsvtoSettings { alpha_j: 1e-2, ..CsvtoSettings::default() };
+    solve(&p, &mut parts, 100, &settings);
+    let x = &parts[0];
+    let n = p.row_dim();
+    let layout = Layout::of(&p);
+    let z = initial_slack(&p, &layout, x);
+    let lin = Linearization::build(&p, &layout, x, &z);
+    // Unit push in y of every row: how much survives the projection?
+    let mut v = vec![0.0; lin.dim()];
+    for t in 0..8 { v[t * n + 9] = 1.0; }
+    let mut scratch = Vec::new();
+    let before: f64 = v.iter().map(|a| a * a).sum::<f64>().sqrt();
+    lin.project(&mut v, 1, &mut scratch);
+    eprintln!("y push: |v| {before} -> y comps {:?}", (0..8).map(|t| v[t*n+9]).collect::<Vec<_>>());
+    let mut v = vec![0.0; lin.dim()];
+    for t in 0..8 { v[t * n + 10] = 1.0; }
+    lin.project(&mut v, 1, &mut scratch);
+    eprintln!("theta push: {:?}", (0..8).map(|t| v[t*n+10]).collect::<Vec<_>>());
+    let mut g = vec![0.0; x.len()];
+    p.cost(x, &mut g);
+    let mut v = vec![0.0; lin.dim()];
+    for c in 0..x.len() { v[c] = -g[c]; }
+    eprintln!("grad y {:?}", (0..8).map(|t| v[t*n+9]).collect::<Vec<_>>());
+    lin.project(&mut v, 1, &mut scratch);
+    eprintln!("proj grad y {:?}", (0..8).map(|t| v[t*n+9]).collect::<Vec<_>>());
+    eprintln!("slack {:?}", z.iter().map(|a| (a*1e3).round()/1e3).collect::<Vec<_>>());
 }
