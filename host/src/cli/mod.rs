@@ -2,6 +2,8 @@
 
 use clap::{Parser, Subcommand};
 
+pub mod bench;
+pub mod bench_csvto;
 pub mod episode;
 
 /// DIPS: diffusion-informed probabilistic contact search for multi-finger manipulation.
@@ -18,6 +20,8 @@ pub struct Cli {
 pub enum Command {
     /// One closed-loop episode in the quasi-static world; writes DIR/result.json.
     Episode(episode::EpisodeArgs),
+    /// Benchmarks that print JSON figures.
+    Bench(bench::BenchArgs),
 }
 
 /// Parse the process arguments and run the command.
@@ -25,5 +29,6 @@ pub fn main() -> anyhow::Result<()> {
     let cli = Cli::parse();
     match cli.command {
         Command::Episode(args) => episode::run(args),
+        Command::Bench(args) => bench::run(args),
     }
 }

@@ -11,6 +11,27 @@
 //! vectors side by side, so row `i` of the batch is `rhs[i*k..(i+1)*k]`; the inner loops run
 //! over the `k` vectors and vectorise.
 
+/// Dot product with eight independent accumulators, so it vectorises (a plain fold must
+/// keep the sequential rounding order and does not).
+#[inline]
+pub fn dot(a: &[f64], b: &[f64]) -> f64 {
+    let n = a.len().min(b.len());
+    let (a, b) = (&a[..n], &b[..n]);
+    let mut acc = [0.0f64; 8];
+    let mut ca = a.chunks_exact(8);
+    let mut cb = b.chunks_exact(8);
+    for (x, y) in (&mut ca).zip(&mut cb) {
+        for i in 0..8 {
+            acc[i] += x[i] * y[i];
+        }
+    }
+    let mut s = (acc[0] + acc[4]) + (acc[1] + acc[5]) + ((acc[2] + acc[6]) + (acc[3] + acc[7]));
+    for (x, y) in ca.remainder().iter().zip(cb.remainder()) {
+        s += x * y;
+    }
+    s
+}
+
 /// Smallest pivot accepted during a dense Cholesky; smaller pivots are raised to it.
 const MIN_PIVOT: f64 = 1e-12;
 
@@ -22,10 +43,8 @@ pub fn cholesky_in_place(a: &mut [f64], m: usize) -> usize {
     debug_assert_eq!(a.len(), m * m);
     let mut raised = 0;
     for j in 0..m {
-        let mut d = a[j * m + j];
-        for k in 0..j {
-            d -= a[j * m + k] * a[j * m + k];
-        }
+        let rj = &a[j * m..j * m + j];
+        let mut d = a[j * m + j] - dot(rj, rj);
         if !(d > MIN_PIVOT) {
             d = MIN_PIVOT;
             raised += 1;
@@ -34,11 +53,7 @@ pub fn cholesky_in_place(a: &mut [f64], m: usize) -> usize {
         a[j * m + j] = d;
         let inv = 1.0 / d;
         for i in j + 1..m {
-            let mut s = a[i * m + j];
-            let (ri, rj) = (i * m, j * m);
-            for k in 0..j {
-                s -= a[ri + k] * a[rj + k];
-            }
+            let s = a[i * m + j] - dot(&a[i * m..i * m + j], &a[j * m..j * m + j]);
             a[i * m + j] = s * inv;
         }
         for k in j + 1..m {
@@ -54,13 +69,10 @@ pub fn forward_sub(l: &[f64], m: usize, b: &mut [f64], k: usize) {
     for i in 0..m {
         let (head, tail) = b.split_at_mut(i * k);
         let bi = &mut tail[..k];
-        for j in 0..i {
+        for (j, bj) in head.chunks_exact(k).enumerate() {
             let lij = l[i * m + j];
-            if lij != 0.0 {
-                let bj = &head[j * k..(j + 1) * k];
-                for c in 0..k {
-                    bi[c] -= lij * bj[c];
-                }
+            for (x, y) in bi.iter_mut().zip(bj) {
+                *x -= lij * y;
             }
         }
         let inv = 1.0 / l[i * m + i];
@@ -75,13 +87,10 @@ pub fn backward_sub_transposed(l: &[f64], m: usize, b: &mut [f64], k: usize) {
     for i in (0..m).rev() {
         let (head, tail) = b.split_at_mut((i + 1) * k);
         let bi = &mut head[i * k..];
-        for j in i + 1..m {
-            let lji = l[j * m + i];
-            if lji != 0.0 {
-                let bj = &tail[(j - i - 1) * k..(j - i) * k];
-                for c in 0..k {
-                    bi[c] -= lji * bj[c];
-                }
+        for (q, bj) in tail.chunks_exact(k).enumerate() {
+            let lji = l[(i + 1 + q) * m + i];
+            for (x, y) in bi.iter_mut().zip(bj) {
+                *x -= lji * y;
             }
         }
         let inv = 1.0 / l[i * m + i];
@@ -102,6 +111,8 @@ pub struct BlockTriFactor {
     diag: Vec<Vec<f64>>,
     /// Coupling blocks `C_t = A_{t,t−1} L_{t−1}⁻ᵀ` (`m_t×m_{t−1}`); `C_0` is empty.
     sub: Vec<Vec<f64>>,
+    /// Non-zero rows of each `C_t`.
+    live: Vec<Vec<usize>>,
     /// How many pivots were raised to keep the factorisation defined.
     pub raised_pivots: usize,
 }
@@ -120,6 +131,7 @@ impl BlockTriFactor {
         }
         offsets.push(acc);
         let mut raised = 0;
+        let mut lives = vec![Vec::new(); h];
         for t in 0..h {
             let m = sizes[t];
             if t > 0 {
@@ -135,10 +147,7 @@ impl BlockTriFactor {
                 for &r in &live {
                     let row = &mut c[r * mp..(r + 1) * mp];
                     for i in 0..mp {
-                        let mut s = row[i];
-                        for j in 0..i {
-                            s -= lp[i * mp + j] * row[j];
-                        }
+                        let s = row[i] - dot(&lp[i * mp..i * mp + i], &row[..i]);
                         row[i] = s / lp[i * mp + i];
                     }
                 }
@@ -148,13 +157,10 @@ impl BlockTriFactor {
                     let ci = &c[i * mp..(i + 1) * mp];
                     for &j in &live[..=a] {
                         let cj = &c[j * mp..(j + 1) * mp];
-                        let mut s = 0.0;
-                        for q in 0..mp {
-                            s += ci[q] * cj[q];
-                        }
-                        d[i * m + j] -= s;
+                        d[i * m + j] -= dot(ci, cj);
                     }
                 }
+                lives[t] = live;
             }
             raised += cholesky_in_place(&mut diag[t], m);
         }
@@ -163,6 +169,7 @@ impl BlockTriFactor {
             offsets,
             diag,
             sub,
+            live: lives,
             raised_pivots: raised,
         }
     }
@@ -184,15 +191,12 @@ impl BlockTriFactor {
                 let (prev, cur) = b.split_at_mut(o * k);
                 let prev = &prev[op * k..];
                 let c = &self.sub[t];
-                for r in 0..m {
+                for &r in &self.live[t] {
                     let br = &mut cur[r * k..(r + 1) * k];
-                    for q in 0..mp {
+                    for (q, pq) in prev[..mp * k].chunks_exact(k).enumerate() {
                         let v = c[r * mp + q];
-                        if v != 0.0 {
-                            let pq = &prev[q * k..(q + 1) * k];
-                            for j in 0..k {
-                                br[j] -= v * pq[j];
-                            }
+                        for (x, y) in br.iter_mut().zip(pq) {
+                            *x -= v * y;
                         }
                     }
                 }
@@ -203,19 +207,16 @@ impl BlockTriFactor {
         for t in (0..h).rev() {
             let (m, o) = (self.sizes[t], self.offsets[t]);
             if t + 1 < h {
-                let (mn, on) = (self.sizes[t + 1], self.offsets[t + 1]);
+                let on = self.offsets[t + 1];
                 let (cur, next) = b.split_at_mut(on * k);
                 let cur = &mut cur[o * k..];
                 let c = &self.sub[t + 1];
-                for r in 0..mn {
+                for &r in &self.live[t + 1] {
                     let nr = &next[r * k..(r + 1) * k];
-                    for q in 0..m {
+                    for (q, cq) in cur[..m * k].chunks_exact_mut(k).enumerate() {
                         let v = c[r * m + q];
-                        if v != 0.0 {
-                            let cq = &mut cur[q * k..(q + 1) * k];
-                            for j in 0..k {
-                                cq[j] -= v * nr[j];
-                            }
+                        for (x, y) in cq.iter_mut().zip(nr) {
+                            *x -= v * y;
                         }
                     }
                 }

@@ -155,6 +155,15 @@ struct Contact<S> {
     frames: super::fk::Frames<S>,
 }
 
+/// The parts of a [`Contact`] the step terms need, in the caller's scalar: signed distance,
+/// normal, surface point and the Jacobian of the finger's contact point.
+struct Lifted<S> {
+    sdf: S,
+    normal: V3<S>,
+    surface: V3<S>,
+    jac: [V3<S>; 4],
+}
+
 /// Per-finger step terms of a contact finger.
 struct ContactTerms<S> {
     sdf: S,
@@ -342,24 +351,20 @@ impl AllegroProblem {
     /// Geometry of finger `i` at the joints `v[oq..oq+4]` and object pose `v[oo..oo+3]`,
     /// computed in 7-wide dual numbers (the expensive kinematics and distance) and lifted
     /// into the caller's wider scalar.
-    fn lifted_contact<S: Lift>(&self, i: usize, v: &[S; W], oq: usize, oo: usize) -> Contact<S> {
+    fn lifted_contact<S: Lift>(&self, i: usize, v: &[S; W], oq: usize, oo: usize) -> Lifted<S> {
         let vals: [f64; 7] = std::array::from_fn(|k| {
             if k < 4 { v[oq + k].val() } else { v[oo + k - 4].val() }
         });
         let d: [Dual<7>; 7] = seed(&vals);
         let c = self.contact(i, &[d[0], d[1], d[2], d[3]], &[d[4], d[5], d[6]]);
+        let jac = c.frames.point_jacobian(&c.finger_point);
         let l = |x: Dual<7>| S::lift(x, oq, oo);
         let lv = |x: &V3<Dual<7>>| V3(x.0.map(l));
-        Contact {
+        Lifted {
             sdf: l(c.sdf),
             normal: lv(&c.normal),
             surface: lv(&c.surface),
-            finger_point: lv(&c.finger_point),
-            frames: super::fk::Frames {
-                origins: c.frames.origins.each_ref().map(lv),
-                axes: c.frames.axes.each_ref().map(lv),
-                tip: lv(&c.frames.tip),
-            },
+            jac: jac.each_ref().map(lv),
         }
     }
 
@@ -440,7 +445,7 @@ impl AllegroProblem {
         let f = V3([v[18], v[19], v[20]]);
         let (ct, cn) = (self.lifted_contact::<S>(i, v, 0, 4), self.lifted_contact::<S>(i, v, 7, 11));
         // Rolling: the finger's contact point moves with the object's material point.
-        let jt = ct.frames.point_jacobian(&ct.finger_point);
+        let jt = &ct.jac;
         let mut dfinger = V3::zero();
         for k in 0..4 {
             dfinger = dfinger.add(&jt[k].scale(qn[k] - qt[k]));
@@ -449,7 +454,7 @@ impl AllegroProblem {
         let (t1, t2) = tangents(&ct.normal);
         let roll = [t1.dot(&rel), t2.dot(&rel)];
         // Joint impedance balance at s_{t+1}.
-        let jn = cn.frames.point_jacobian(&cn.finger_point);
+        let jn = &cn.jac;
         let balance: [S; 4] =
             std::array::from_fn(|k| -jn[k].dot(&f) + (qt[k] + dq[k] - qn[k]) * self.kp);
         let wrench = match self.task {

@@ -1,0 +1,84 @@
+//! `dips bench csvto`: the time of one online CSVTO step.
+//!
+//! The workload is the screwdriver turn mode from the world's start state with the DIPS
+//! settings (N = 16, α_J = 5e-3, H = 12): one warm-up solve (100 iterations, not timed in
+//! `step_s`), then `repeats` online solves of 25 iterations on the full horizon, each from
+//! the particles the previous one left. `step_s` is their median.
+
+use std::time::Instant;
+
+use clap::Args;
+use dips_kernel::rng::KernelRng;
+use serde_json::json;
+
+use crate::csvto::{Problem, solve};
+use crate::execute::{ExecSettings, mode_goal};
+use crate::kinematics::HandModel;
+use crate::problems::init::default_particles;
+use crate::problems::{AllegroProblem, Mode, ProblemSpec};
+use crate::scenes::SceneKind;
+use crate::world::World;
+
+/// `dips bench csvto`.
+#[derive(Debug, Args)]
+pub struct CsvtoBenchArgs {
+    /// Number of timed online solves.
+    #[arg(long, default_value_t = 7)]
+    pub repeats: usize,
+    /// Seed of the initial particles.
+    #[arg(long, default_value_t = 0)]
+    pub seed: u64,
+    /// Print JSON (the only output format; accepted for the CLI contract).
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// Run the benchmark and print its JSON figures.
+pub fn run(args: CsvtoBenchArgs) -> anyhow::Result<()> {
+    let settings = ExecSettings::for_task(SceneKind::Screwdriver);
+    let hand = HandModel::allegro_v4();
+    let world = World::new(SceneKind::Screwdriver);
+    let start = world.state();
+    let spec = ProblemSpec {
+        task: SceneKind::Screwdriver,
+        mode: Mode::Turn,
+        horizon: settings.horizon,
+        goal: mode_goal(Mode::Turn, &start),
+        start,
+    };
+    let problem = AllegroProblem::new(&hand, &spec);
+    let mut rng = KernelRng::seed_from_u64(args.seed);
+    let mut particles = default_particles(&problem, Mode::Turn, settings.particles, &mut rng);
+    let t0 = Instant::now();
+    solve(&problem, &mut particles, settings.warmup_iters, &settings.csvto);
+    let warmup_s = t0.elapsed().as_secs_f64();
+    let mut times = Vec::with_capacity(args.repeats);
+    let mut violation = 0.0;
+    for _ in 0..args.repeats.max(1) {
+        let t = Instant::now();
+        let rep = solve(&problem, &mut particles, settings.online_iters, &settings.csvto);
+        times.push(t.elapsed().as_secs_f64());
+        violation = rep.max_eq_violation[0];
+    }
+    let mut sorted = times.clone();
+    sorted.sort_by(f64::total_cmp);
+    let step_s = sorted[sorted.len() / 2];
+    let out = json!({
+        "bench": "csvto",
+        "task": "screwdriver",
+        "mode": "turn",
+        "particles": settings.particles,
+        "iterations": settings.online_iters,
+        "horizon": settings.horizon,
+        "row_dim": problem.row_dim(),
+        "constraints_per_step": problem.n_eq(0) + problem.n_ineq(0),
+        "threads": rayon::current_num_threads(),
+        "step_s": step_s,
+        "step_s_all": times,
+        "warmup_s": warmup_s,
+        "warmup_iterations": settings.warmup_iters,
+        "best_max_eq_violation": violation,
+    });
+    println!("{}", serde_json::to_string_pretty(&out)?);
+    Ok(())
+}
