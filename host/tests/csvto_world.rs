@@ -50,7 +50,11 @@ fn turn_mode_turns_clockwise_and_keeps_the_screwdriver_valid() {
         assert!(r.steps.iter().all(|s| s.valid), "seed {seed}: invalid");
         // Every contact finger stays in contact (world sdf within 2 mm) throughout.
         for s in &r.steps {
-            assert!(s.tip_sdf.iter().all(|d| d.abs() < 2e-3), "seed {seed}: {:?}", s.tip_sdf);
+            assert!(
+                s.tip_sdf.iter().all(|d| d.abs() < 2e-3),
+                "seed {seed}: {:?}",
+                s.tip_sdf
+            );
         }
         turned.push(dyaw);
     }
@@ -73,7 +77,10 @@ fn check_regrasp(mode: Mode, fingers: &[usize]) {
                 mode.name()
             );
             // Contact is really broken: clear by δ (to 1 mm) at every step before the last.
-            assert!(mid >= REGRASP_CLEARANCE - 1e-3, "seed {seed}: mid sdf {mid}");
+            assert!(
+                mid >= REGRASP_CLEARANCE - 1e-3,
+                "seed {seed}: mid sdf {mid}"
+            );
             // And remade at the end.
             assert!(end.abs() <= 3e-3, "seed {seed}: final sdf {end}");
             // Close to the regrasp target (the default fingertip position on the object).
@@ -146,7 +153,10 @@ fn csvto_sampled_screwdriver_episodes_turn_a_radian() {
             good += 1;
         }
     }
-    assert!(good * 10 >= 8 * n, "{good} of {n} episodes turned ≥ 1 rad and stayed valid");
+    assert!(
+        good * 10 >= 8 * n,
+        "{good} of {n} episodes turned ≥ 1 rad and stayed valid"
+    );
 }
 
 #[test]

@@ -15,13 +15,23 @@ fn temp_dir(name: &str) -> std::path::PathBuf {
 #[test]
 fn search_methods_are_rejected_with_a_clear_error() {
     let out = dips()
-        .args(["episode", "--task", "screwdriver", "--method", "dips", "--out"])
+        .args([
+            "episode",
+            "--task",
+            "screwdriver",
+            "--method",
+            "dips",
+            "--out",
+        ])
         .arg(temp_dir("reject"))
         .output()
         .expect("run dips");
     assert!(!out.status.success());
     let err = String::from_utf8_lossy(&out.stderr);
-    assert!(err.contains("csvto-sampled") && err.contains("`dips`"), "{err}");
+    assert!(
+        err.contains("csvto-sampled") && err.contains("`dips`"),
+        "{err}"
+    );
 }
 
 #[test]
@@ -41,12 +51,22 @@ fn unknown_mode_names_list_the_valid_ones() {
 fn a_given_mode_sequence_writes_result_json() {
     let dir = temp_dir("turn");
     let out = dips()
-        .args(["episode", "--task", "screwdriver", "--method", "csvto-sampled"])
+        .args([
+            "episode",
+            "--task",
+            "screwdriver",
+            "--method",
+            "csvto-sampled",
+        ])
         .args(["--seed", "4", "--modes", "turn", "--out"])
         .arg(&dir)
         .output()
         .expect("run dips");
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     let text = std::fs::read_to_string(dir.join("result.json")).expect("result.json");
     let v: serde_json::Value = serde_json::from_str(&text).expect("valid JSON");
     assert_eq!(v["task"], "screwdriver");

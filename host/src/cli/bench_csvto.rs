@@ -50,13 +50,23 @@ pub fn run(args: CsvtoBenchArgs) -> anyhow::Result<()> {
     let mut rng = KernelRng::seed_from_u64(args.seed);
     let mut particles = default_particles(&problem, Mode::Turn, settings.particles, &mut rng);
     let t0 = Instant::now();
-    solve(&problem, &mut particles, settings.warmup_iters, &settings.csvto);
+    solve(
+        &problem,
+        &mut particles,
+        settings.warmup_iters,
+        &settings.csvto,
+    );
     let warmup_s = t0.elapsed().as_secs_f64();
     let mut times = Vec::with_capacity(args.repeats);
     let mut violation = 0.0;
     for _ in 0..args.repeats.max(1) {
         let t = Instant::now();
-        let rep = solve(&problem, &mut particles, settings.online_iters, &settings.csvto);
+        let rep = solve(
+            &problem,
+            &mut particles,
+            settings.online_iters,
+            &settings.csvto,
+        );
         times.push(t.elapsed().as_secs_f64());
         violation = rep.max_eq_violation[0];
     }

@@ -42,8 +42,12 @@ const SEARCH_METHODS: [&str; 6] = [
 
 /// Run the command.
 pub fn run(args: EpisodeArgs) -> anyhow::Result<()> {
-    let task = SceneKind::from_name(&args.task)
-        .with_context(|| format!("unknown task `{}` (expected screwdriver or card)", args.task))?;
+    let task = SceneKind::from_name(&args.task).with_context(|| {
+        format!(
+            "unknown task `{}` (expected screwdriver or card)",
+            args.task
+        )
+    })?;
     if args.method != "csvto-sampled" {
         if SEARCH_METHODS.contains(&args.method.as_str()) {
             bail!(
@@ -64,7 +68,14 @@ pub fn run(args: EpisodeArgs) -> anyhow::Result<()> {
     };
     let settings = ExecSettings::for_task(task);
     let mut progress = |line: &str| eprintln!("{line}");
-    let result = run_episode(task, &args.method, args.seed, &modes, &settings, &mut progress)?;
+    let result = run_episode(
+        task,
+        &args.method,
+        args.seed,
+        &modes,
+        &settings,
+        &mut progress,
+    )?;
     result
         .write(&args.out)
         .with_context(|| format!("writing {}", args.out.join("result.json").display()))?;

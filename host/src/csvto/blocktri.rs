@@ -45,7 +45,8 @@ pub fn cholesky_in_place(a: &mut [f64], m: usize) -> usize {
     for j in 0..m {
         let rj = &a[j * m..j * m + j];
         let mut d = a[j * m + j] - dot(rj, rj);
-        if !(d > MIN_PIVOT) {
+        // Also catches NaN.
+        if d.is_nan() || d <= MIN_PIVOT {
             d = MIN_PIVOT;
             raised += 1;
         }
@@ -305,7 +306,12 @@ mod tests {
         forward_sub(&l, total, &mut y, k);
         backward_sub_transposed(&l, total, &mut y, k);
         for i in 0..total * k {
-            assert!((x[i] - y[i]).abs() < 1e-9 * (1.0 + y[i].abs()), "{i}: {} vs {}", x[i], y[i]);
+            assert!(
+                (x[i] - y[i]).abs() < 1e-9 * (1.0 + y[i].abs()),
+                "{i}: {} vs {}",
+                x[i],
+                y[i]
+            );
         }
         // And the residual A x − b is small.
         for r in 0..total {

@@ -120,8 +120,7 @@ pub fn solve(
                         let knm = kern.at(n, m);
                         let xm = &particles[m];
                         for c in 0..dim_x {
-                            v[c * np + m] =
-                                knm * (-g * gn[c] - two_over_h * (xn[c] - xm[c]));
+                            v[c * np + m] = knm * (-g * gn[c] - two_over_h * (xn[c] - xm[c]));
                         }
                     }
                     evals[n].lin.project(&mut v, np, &mut scratch);

@@ -112,7 +112,11 @@ fn particles_stay_feasible_and_spread_and_sort_by_penalty() {
         start: [0.0, 1.0],
     };
     let mut parts: Vec<Vec<f64>> = (0..6)
-        .map(|i| (0..6).map(|c| ((i * 7 + c * 3) % 5) as f64 * 0.3 - 0.5).collect())
+        .map(|i| {
+            (0..6)
+                .map(|c| ((i * 7 + c * 3) % 5) as f64 * 0.3 - 0.5)
+                .collect()
+        })
         .collect();
     let rep = solve(&p, &mut parts, 200, &settings());
     for x in &parts {

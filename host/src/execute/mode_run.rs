@@ -153,7 +153,9 @@ pub fn run_mode(
         let report = solve(&problem, &mut particles, iters, &settings.csvto);
         let solve_s = t0.elapsed().as_secs_f64();
         let best = &particles[0];
-        let dq: Vec<f64> = (0..nq).map(|c| best[problem.dq_col(c / 4, c % 4)]).collect();
+        let dq: Vec<f64> = (0..nq)
+            .map(|c| best[problem.dq_col(c / 4, c % 4)])
+            .collect();
         let planned_state = problem.to_world_units(&best[..problem.state_dim()]);
         world.step_action(&dq)?;
         let state = world.state();
@@ -167,8 +169,14 @@ pub fn run_mode(
             solve_s,
             iters,
             report.max_eq_violation[0],
-            state[nq..].iter().map(|v| (v * 1e3).round() / 1e3).collect::<Vec<_>>(),
-            tip_sdf.iter().map(|v| (v * 1e4).round() / 1e4).collect::<Vec<_>>(),
+            state[nq..]
+                .iter()
+                .map(|v| (v * 1e3).round() / 1e3)
+                .collect::<Vec<_>>(),
+            tip_sdf
+                .iter()
+                .map(|v| (v * 1e4).round() / 1e4)
+                .collect::<Vec<_>>(),
             if valid { "" } else { " INVALID" }
         ));
         steps.push(StepLog {

@@ -20,6 +20,9 @@
 //!
 //! All Jacobians are exact (forward-mode [`Dual`] numbers through kinematics and geometry).
 
+// Index loops over small fixed-size arrays mirror the maths (rows, joints, faces).
+#![allow(clippy::needless_range_loop)]
+
 use std::f64::consts::PI;
 
 use super::dual::{Dual, M3, Scalar, V3};
@@ -183,7 +186,11 @@ impl AllegroProblem {
         let fingers = task.task_fingers();
         let nf = fingers.len();
         assert_eq!(contact.len(), nf, "mode does not belong to the task");
-        assert_eq!(spec.start.len(), 4 * nf + 3, "start state has the wrong length");
+        assert_eq!(
+            spec.start.len(),
+            4 * nf + 3,
+            "start state has the wrong length"
+        );
         let mut slot = Vec::with_capacity(nf);
         let mut nc = 0;
         for &c in &contact {
@@ -353,7 +360,11 @@ impl AllegroProblem {
     /// into the caller's wider scalar.
     fn lifted_contact<S: Lift>(&self, i: usize, v: &[S; W], oq: usize, oo: usize) -> Lifted<S> {
         let vals: [f64; 7] = std::array::from_fn(|k| {
-            if k < 4 { v[oq + k].val() } else { v[oo + k - 4].val() }
+            if k < 4 {
+                v[oq + k].val()
+            } else {
+                v[oo + k - 4].val()
+            }
         });
         let d: [Dual<7>; 7] = seed(&vals);
         let c = self.contact(i, &[d[0], d[1], d[2], d[3]], &[d[4], d[5], d[6]]);
@@ -443,7 +454,10 @@ impl AllegroProblem {
         let on = [v[11], v[12], v[13]];
         let dq = [v[14], v[15], v[16], v[17]];
         let f = V3([v[18], v[19], v[20]]);
-        let (ct, cn) = (self.lifted_contact::<S>(i, v, 0, 4), self.lifted_contact::<S>(i, v, 7, 11));
+        let (ct, cn) = (
+            self.lifted_contact::<S>(i, v, 0, 4),
+            self.lifted_contact::<S>(i, v, 7, 11),
+        );
         // Rolling: the finger's contact point moves with the object's material point.
         let jt = &ct.jac;
         let mut dfinger = V3::zero();
@@ -458,11 +472,12 @@ impl AllegroProblem {
         let balance: [S; 4] =
             std::array::from_fn(|k| -jn[k].dot(&f) + (qt[k] + dq[k] - qn[k]) * self.kp);
         let wrench = match self.task {
-            SceneKind::Screwdriver => cn
-                .surface
-                .sub(&V3::cst(scenes::screwdriver::PIVOT))
-                .cross(&f)
-                .0,
+            SceneKind::Screwdriver => {
+                cn.surface
+                    .sub(&V3::cst(scenes::screwdriver::PIVOT))
+                    .cross(&f)
+                    .0
+            }
             SceneKind::Card => f.0,
         };
         let (n1, n2) = tangents(&cn.normal);
@@ -664,11 +679,7 @@ impl Problem for AllegroProblem {
                     let od: [Dual<3>; 3] = seed(&on);
                     let (r, _) = object_pose(self.task, &od);
                     let com = r.mul_v(&V3::cst([0.0, 0.0, scenes::screwdriver::COM_HEIGHT]));
-                    let g = V3::cst([
-                        0.0,
-                        0.0,
-                        -scenes::screwdriver::MASS * scenes::GRAVITY,
-                    ]);
+                    let g = V3::cst([0.0, 0.0, -scenes::screwdriver::MASS * scenes::GRAVITY]);
                     let tg = com.cross(&g);
                     for k in 0..3 {
                         let rr = obj_row + k;
@@ -755,7 +766,12 @@ impl Problem for AllegroProblem {
             }
             if last {
                 out.eq[e] = c.sdf.v;
-                scatter(&mut out.jac_eq[e * width..(e + 1) * width], &map, &c.sdf.d, 1.0);
+                scatter(
+                    &mut out.jac_eq[e * width..(e + 1) * width],
+                    &map,
+                    &c.sdf.d,
+                    1.0,
+                );
                 e += 1;
             } else {
                 out.ineq[q] = REGRASP_CLEARANCE - c.sdf.v;
@@ -877,7 +893,11 @@ impl Problem for AllegroProblem {
                 let hi = self.joint_hi[k] - prev_q[k];
                 let c = nq + 3 + k;
                 let (a, b) = (lo.max(-self.dq_bound), hi.min(self.dq_bound));
-                row[c] = if a <= b { row[c].clamp(a, b) } else { 0.5 * (a + b) };
+                row[c] = if a <= b {
+                    row[c].clamp(a, b)
+                } else {
+                    0.5 * (a + b)
+                };
             }
         }
     }

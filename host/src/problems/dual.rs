@@ -5,6 +5,9 @@
 //! `N` seeded inputs), which gives the analytic Jacobians CSVTO needs without hand-deriving
 //! second derivatives of the kinematics and the signed distances.
 
+// Index loops over small fixed-size arrays mirror the maths (rows, joints, faces).
+#![allow(clippy::needless_range_loop)]
+
 use std::ops::{Add, Div, Mul, Neg, Sub};
 
 /// The number type the constraint code is generic over.

@@ -39,7 +39,12 @@ pub fn default_particles(
     let o0 = [world[nq], world[nq + 1], world[nq + 2]];
     let normals: Vec<[f64; 3]> = (0..nf)
         .map(|i| {
-            let q = [start[4 * i], start[4 * i + 1], start[4 * i + 2], start[4 * i + 3]];
+            let q = [
+                start[4 * i],
+                start[4 * i + 1],
+                start[4 * i + 2],
+                start[4 * i + 3],
+            ];
             problem.contact_normal(i, &q, &o0)
         })
         .collect();
@@ -67,13 +72,12 @@ pub fn default_particles(
                         1.0
                     };
                     for k in 0..3 {
-                        row[problem.force_col(s, k)] = scale
-                            * (-INIT_NORMAL_FORCE * n[k] + FORCE_SIGMA * normal(rng));
+                        row[problem.force_col(s, k)] =
+                            scale * (-INIT_NORMAL_FORCE * n[k] + FORCE_SIGMA * normal(rng));
                     }
                 }
                 if problem.has_env_force() {
-                    row[problem.env_col(2)] =
-                        crate::scenes::card::MASS * crate::scenes::GRAVITY;
+                    row[problem.env_col(2)] = crate::scenes::card::MASS * crate::scenes::GRAVITY;
                 }
             }
             problem.clamp(&mut x);

@@ -75,12 +75,7 @@ pub fn screwdriver<S: Scalar>(p: &V3<S>) -> SurfaceDistance<S> {
         screwdriver::HANDLE_Z0,
         screwdriver::CAP_Z1,
     );
-    let shaft = cylinder(
-        p,
-        screwdriver::SHAFT_RADIUS,
-        0.0,
-        screwdriver::HANDLE_Z0,
-    );
+    let shaft = cylinder(p, screwdriver::SHAFT_RADIUS, 0.0, screwdriver::HANDLE_Z0);
     if shaft.dist.val() < body.dist.val() {
         shaft
     } else {
@@ -140,7 +135,11 @@ mod tests {
             let mut pp = p;
             pp[i] += eps;
             let g = (f(&V3(pp)).dist - d0) / eps;
-            assert!((g - n0[i]).abs() < 1e-5, "axis {i}: fd {g} vs normal {}", n0[i]);
+            assert!(
+                (g - n0[i]).abs() < 1e-5,
+                "axis {i}: fd {g} vs normal {}",
+                n0[i]
+            );
         }
     }
 

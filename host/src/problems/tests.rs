@@ -104,7 +104,10 @@ fn constraint_jacobians_match_finite_differences() {
 #[test]
 fn cost_gradient_matches_finite_differences() {
     let hand = HandModel::allegro_v4();
-    for (m, &mode) in [Mode::Turn, Mode::IndexRegrasp, Mode::CardMiddle].iter().enumerate() {
+    for (m, &mode) in [Mode::Turn, Mode::IndexRegrasp, Mode::CardMiddle]
+        .iter()
+        .enumerate()
+    {
         let p = AllegroProblem::new(&hand, &spec(mode, 3));
         let x = perturbed(&p, mode, 30 + m as u64);
         let mut g = vec![0.0; x.len()];
@@ -166,8 +169,14 @@ fn diag_turn_convergence() {
     let mut rng = KernelRng::seed_from_u64(3);
     let mut parts = default_particles(&p, Mode::Turn, 8, &mut rng);
     let n = p.row_dim();
-    let clip: f64 = std::env::var("DIAG_CLIP").ok().and_then(|v| v.parse().ok()).unwrap_or(1.0);
-    let fs: f64 = std::env::var("DIAG_FS").ok().and_then(|v| v.parse().ok()).unwrap_or(1.0);
+    let clip: f64 = std::env::var("DIAG_CLIP")
+        .ok()
+        .and_then(|v| v.parse().ok())
+        .unwrap_or(1.0);
+    let fs: f64 = std::env::var("DIAG_FS")
+        .ok()
+        .and_then(|v| v.parse().ok())
+        .unwrap_or(1.0);
     for x in parts.iter_mut() {
         for t in 0..12 {
             for c in 27..36 {
@@ -175,7 +184,10 @@ fn diag_turn_convergence() {
             }
         }
     }
-    let settings = CsvtoSettings { max_step_norm: clip, ..CsvtoSettings::default() };
+    let settings = CsvtoSettings {
+        max_step_norm: clip,
+        ..CsvtoSettings::default()
+    };
     for round in 0..10 {
         let t0 = std::time::Instant::now();
         let rep = solve(&p, &mut parts, 10, &settings);
@@ -207,20 +219,51 @@ fn diag_card_both() {
     let mut rng = KernelRng::seed_from_u64(3);
     let mut parts = default_particles(&p, mode, 16, &mut rng);
     let n = p.row_dim();
-    let aj: f64 = std::env::var("DIAG_AJ").ok().and_then(|v| v.parse().ok()).unwrap_or(1e-2);
-    let it: usize = std::env::var("DIAG_IT").ok().and_then(|v| v.parse().ok()).unwrap_or(150);
-    let settings = CsvtoSettings { alpha_j: aj, ..CsvtoSettings::default() };
+    let aj: f64 = std::env::var("DIAG_AJ")
+        .ok()
+        .and_then(|v| v.parse().ok())
+        .unwrap_or(1e-2);
+    let it: usize = std::env::var("DIAG_IT")
+        .ok()
+        .and_then(|v| v.parse().ok())
+        .unwrap_or(150);
+    let settings = CsvtoSettings {
+        alpha_j: aj,
+        ..CsvtoSettings::default()
+    };
     let rep = solve(&p, &mut parts, it, &settings);
-    eprintln!("eq {:?} ineq {:?}", rep.max_eq_violation[0], rep.max_ineq_violation[0]);
+    eprintln!(
+        "eq {:?} ineq {:?}",
+        rep.max_eq_violation[0], rep.max_ineq_violation[0]
+    );
     let x = &parts[0];
     for t in 0..8 {
         let r = &x[t * n..(t + 1) * n];
-        eprintln!("t{t}: q {:?} o {:?} f {:?}", &r[0..8].iter().map(|v| (v * 1e3).round() / 1e3).collect::<Vec<_>>(), &r[8..11].iter().map(|v| (v * 1e4).round() / 1e4).collect::<Vec<_>>(), &r[19..].iter().map(|v| (v * 1e3).round() / 1e3).collect::<Vec<_>>());
+        eprintln!(
+            "t{t}: q {:?} o {:?} f {:?}",
+            &r[0..8]
+                .iter()
+                .map(|v| (v * 1e3).round() / 1e3)
+                .collect::<Vec<_>>(),
+            &r[8..11]
+                .iter()
+                .map(|v| (v * 1e4).round() / 1e4)
+                .collect::<Vec<_>>(),
+            &r[19..]
+                .iter()
+                .map(|v| (v * 1e3).round() / 1e3)
+                .collect::<Vec<_>>()
+        );
     }
     let layout = Layout::of(&p);
     let mut sc = StepConstraints::default();
     for_each_step(&p, &layout, x, &mut sc, |t, c| {
-        eprintln!("t{t} eq {:?}", c.eq.iter().map(|v| (v * 1e4).round() / 1e4).collect::<Vec<_>>());
+        eprintln!(
+            "t{t} eq {:?}",
+            c.eq.iter()
+                .map(|v| (v * 1e4).round() / 1e4)
+                .collect::<Vec<_>>()
+        );
     });
 }
 
@@ -234,7 +277,10 @@ fn diag_card_tangent() {
     let p = AllegroProblem::new(&hand, &s);
     let mut rng = KernelRng::seed_from_u64(3);
     let mut parts = default_particles(&p, Mode::CardBoth, 4, &mut rng);
-    let settings = CsvtoSettings { alpha_j: 1e-2, ..CsvtoSettings::default() };
+    let settings = CsvtoSettings {
+        alpha_j: 1e-2,
+        ..CsvtoSettings::default()
+    };
     solve(&p, &mut parts, 100, &settings);
     let x = &parts[0];
     let n = p.row_dim();
@@ -243,21 +289,44 @@ fn diag_card_tangent() {
     let lin = Linearization::build(&p, &layout, x, &z);
     // Unit push in y of every row: how much survives the projection?
     let mut v = vec![0.0; lin.dim()];
-    for t in 0..8 { v[t * n + 9] = 1.0; }
+    for t in 0..8 {
+        v[t * n + 9] = 1.0;
+    }
     let mut scratch = Vec::new();
     let before: f64 = v.iter().map(|a| a * a).sum::<f64>().sqrt();
     lin.project(&mut v, 1, &mut scratch);
-    eprintln!("y push: |v| {before} -> y comps {:?}", (0..8).map(|t| v[t*n+9]).collect::<Vec<_>>());
+    eprintln!(
+        "y push: |v| {before} -> y comps {:?}",
+        (0..8).map(|t| v[t * n + 9]).collect::<Vec<_>>()
+    );
     let mut v = vec![0.0; lin.dim()];
-    for t in 0..8 { v[t * n + 10] = 1.0; }
+    for t in 0..8 {
+        v[t * n + 10] = 1.0;
+    }
     lin.project(&mut v, 1, &mut scratch);
-    eprintln!("theta push: {:?}", (0..8).map(|t| v[t*n+10]).collect::<Vec<_>>());
+    eprintln!(
+        "theta push: {:?}",
+        (0..8).map(|t| v[t * n + 10]).collect::<Vec<_>>()
+    );
     let mut g = vec![0.0; x.len()];
     p.cost(x, &mut g);
     let mut v = vec![0.0; lin.dim()];
-    for c in 0..x.len() { v[c] = -g[c]; }
-    eprintln!("grad y {:?}", (0..8).map(|t| v[t*n+9]).collect::<Vec<_>>());
+    for c in 0..x.len() {
+        v[c] = -g[c];
+    }
+    eprintln!(
+        "grad y {:?}",
+        (0..8).map(|t| v[t * n + 9]).collect::<Vec<_>>()
+    );
     lin.project(&mut v, 1, &mut scratch);
-    eprintln!("proj grad y {:?}", (0..8).map(|t| v[t*n+9]).collect::<Vec<_>>());
-    eprintln!("slack {:?}", z.iter().map(|a| (a*1e3).round()/1e3).collect::<Vec<_>>());
+    eprintln!(
+        "proj grad y {:?}",
+        (0..8).map(|t| v[t * n + 9]).collect::<Vec<_>>()
+    );
+    eprintln!(
+        "slack {:?}",
+        z.iter()
+            .map(|a| (a * 1e3).round() / 1e3)
+            .collect::<Vec<_>>()
+    );
 }

@@ -63,11 +63,13 @@ impl ObjectDofs {
         let mut j = Matrix3xX::zeros(self.count());
         match self {
             ObjectDofs::Pivot { pivot } => {
-                j.fixed_columns_mut::<3>(0).copy_from(&(-skew(&(p - pivot))));
+                j.fixed_columns_mut::<3>(0)
+                    .copy_from(&(-skew(&(p - pivot))));
             }
             ObjectDofs::Free { origin } => {
                 j.fixed_columns_mut::<3>(0).copy_from(&Matrix3::identity());
-                j.fixed_columns_mut::<3>(3).copy_from(&(-skew(&(p - origin))));
+                j.fixed_columns_mut::<3>(3)
+                    .copy_from(&(-skew(&(p - origin))));
             }
         }
         j
@@ -99,7 +101,10 @@ pub(crate) fn candidates(inp: &ContactInputs<'_>) -> Vec<Candidate> {
     let mut out = Vec::new();
     for (k, frames) in inp.frames.iter().enumerate() {
         let center = frames.tip_center;
-        if let Some(c) = inp.object.sphere_contact(inp.object_pose, &center, r, inp.margin) {
+        if let Some(c) = inp
+            .object
+            .sphere_contact(inp.object_pose, &center, r, inp.margin)
+        {
             let mut jac = Matrix3xX::zeros(n);
             let jf = jacobian_from_frames(frames, &c.point_on_sphere);
             jac.fixed_columns_mut::<4>(4 * k).copy_from(&jf);
@@ -109,7 +114,12 @@ pub(crate) fn candidates(inp: &ContactInputs<'_>) -> Vec<Candidate> {
                 finger: inp.finger_names[k],
                 part: c.part,
                 point: c.point_on_body,
-                row: ConeRow { phi: c.phi, mu: inp.finger_friction, normal: c.normal, jac },
+                row: ConeRow {
+                    phi: c.phi,
+                    mu: inp.finger_friction,
+                    normal: c.normal,
+                    jac,
+                },
             });
         }
         if let Some(table) = inp.table
@@ -122,7 +132,12 @@ pub(crate) fn candidates(inp: &ContactInputs<'_>) -> Vec<Candidate> {
                 finger: inp.finger_names[k],
                 part: c.part,
                 point: c.point_on_body,
-                row: ConeRow { phi: c.phi, mu: inp.finger_table_friction, normal: c.normal, jac },
+                row: ConeRow {
+                    phi: c.phi,
+                    mu: inp.finger_table_friction,
+                    normal: c.normal,
+                    jac,
+                },
             });
         }
     }
@@ -133,12 +148,18 @@ pub(crate) fn candidates(inp: &ContactInputs<'_>) -> Vec<Candidate> {
                 continue;
             }
             let mut jac = Matrix3xX::zeros(n);
-            jac.columns_mut(n_a, inp.dofs.count()).copy_from(&inp.dofs.point_jacobian(&p));
+            jac.columns_mut(n_a, inp.dofs.count())
+                .copy_from(&inp.dofs.point_jacobian(&p));
             out.push(Candidate {
                 finger: "card",
                 part: "table",
                 point: Point3::new(p.x, p.y, card::TABLE_TOP),
-                row: ConeRow { phi, mu: inp.table_friction, normal: Vector3::z(), jac },
+                row: ConeRow {
+                    phi,
+                    mu: inp.table_friction,
+                    normal: Vector3::z(),
+                    jac,
+                },
             });
         }
     }
@@ -185,7 +206,12 @@ pub(crate) fn card_table_vertices(card_pose: &Isometry3<f64>) -> Vec<Point3<f64>
 /// Sutherland–Hodgman clip of a convex CCW polygon to an axis-aligned rectangle.
 fn clip_to_rect(poly: &[Point2<f64>], x0: f64, x1: f64, y0: f64, y1: f64) -> Vec<Point2<f64>> {
     // Each edge: inside test value f(p) ≥ 0.
-    let edges: [(f64, f64, f64); 4] = [(1.0, 0.0, -x0), (-1.0, 0.0, x1), (0.0, 1.0, -y0), (0.0, -1.0, y1)];
+    let edges: [(f64, f64, f64); 4] = [
+        (1.0, 0.0, -x0),
+        (-1.0, 0.0, x1),
+        (0.0, 1.0, -y0),
+        (0.0, -1.0, y1),
+    ];
     let mut out: Vec<Point2<f64>> = poly.to_vec();
     for (a, b, c) in edges {
         if out.is_empty() {
@@ -240,13 +266,23 @@ mod tests {
         // Rotated and overhanging: the clipped polygon has two vertices on the edge line.
         let pose = Isometry3::new(Vector3::new(0.0, -0.06, 0.130), Vector3::new(0.0, 0.0, 0.3));
         let v = card_table_vertices(&pose);
-        assert_eq!(v.iter().filter(|p| (p.y + 0.1).abs() < 1e-12).count(), 2, "{v:?}");
+        assert_eq!(
+            v.iter().filter(|p| (p.y + 0.1).abs() < 1e-12).count(),
+            2,
+            "{v:?}"
+        );
         // A small turn without overhang keeps all four corners (none cut).
         let pose = Isometry3::new(Vector3::new(0.0, 0.05, 0.130), Vector3::new(0.0, 0.0, 0.1));
         assert_eq!(card_table_vertices(&pose).len(), 4);
-        let pose = Isometry3::new(Vector3::new(0.0, -0.06, 0.130), Vector3::new(0.0, 0.0, 0.05));
+        let pose = Isometry3::new(
+            Vector3::new(0.0, -0.06, 0.130),
+            Vector3::new(0.0, 0.0, 0.05),
+        );
         let v = card_table_vertices(&pose);
         assert_eq!(v.len(), 5, "{v:?}");
-        assert!(v.iter().all(|p| p.y >= -0.1 - 1e-12 && (p.z - 0.125).abs() < 1e-12));
+        assert!(
+            v.iter()
+                .all(|p| p.y >= -0.1 - 1e-12 && (p.z - 0.125).abs() < 1e-12)
+        );
     }
 }

@@ -12,7 +12,9 @@ mod contacts;
 mod socp;
 
 use clarabel::solver::SolverStatus;
-use nalgebra::{DMatrix, Isometry3, Matrix3, Point3, Rotation3, Translation3, UnitQuaternion, Vector3};
+use nalgebra::{
+    DMatrix, Isometry3, Matrix3, Point3, Rotation3, Translation3, UnitQuaternion, Vector3,
+};
 use serde::{Deserialize, Serialize};
 
 pub use contacts::ContactReport;
@@ -102,7 +104,11 @@ pub enum ObjectState {
 fn wrap_angle(a: f64) -> f64 {
     let two_pi = std::f64::consts::TAU;
     let r = (a + std::f64::consts::PI).rem_euclid(two_pi) - std::f64::consts::PI;
-    if r <= -std::f64::consts::PI { r + two_pi } else { r }
+    if r <= -std::f64::consts::PI {
+        r + two_pi
+    } else {
+        r
+    }
 }
 
 /// Heading of a rotation about world z (yaw of a ZYX decomposition).
@@ -115,10 +121,16 @@ impl ObjectState {
     /// The scene's initial object state.
     pub fn initial(scene: SceneKind) -> ObjectState {
         match scene {
-            SceneKind::Screwdriver => ObjectState::Screwdriver { orientation: UnitQuaternion::identity(), yaw: 0.0 },
+            SceneKind::Screwdriver => ObjectState::Screwdriver {
+                orientation: UnitQuaternion::identity(),
+                yaw: 0.0,
+            },
             SceneKind::Card => {
                 let [x, y, z] = card::INITIAL_CENTER;
-                ObjectState::Card { pose: Isometry3::translation(x, y, z), theta: 0.0 }
+                ObjectState::Card {
+                    pose: Isometry3::translation(x, y, z),
+                    theta: 0.0,
+                }
             }
         }
     }
@@ -129,7 +141,10 @@ impl ObjectState {
         match scene {
             SceneKind::Screwdriver => {
                 let r = screwdriver::rotation(coords[0], coords[1], coords[2]);
-                ObjectState::Screwdriver { orientation: UnitQuaternion::from_rotation_matrix(&r), yaw: coords[2] }
+                ObjectState::Screwdriver {
+                    orientation: UnitQuaternion::from_rotation_matrix(&r),
+                    yaw: coords[2],
+                }
             }
             SceneKind::Card => ObjectState::Card {
                 pose: Isometry3::from_parts(
@@ -170,7 +185,9 @@ impl ObjectState {
             ObjectState::Screwdriver { orientation, .. } => {
                 screwdriver::is_valid(&orientation.to_rotation_matrix())
             }
-            ObjectState::Card { pose, .. } => (pose.translation.z - card::INITIAL_CENTER[2]).abs() <= 5e-3,
+            ObjectState::Card { pose, .. } => {
+                (pose.translation.z - card::INITIAL_CENTER[2]).abs() <= 5e-3
+            }
         }
     }
 
@@ -189,7 +206,8 @@ impl ObjectState {
             ObjectState::Card { pose, theta } => {
                 let before = heading(&pose.rotation);
                 pose.translation.vector += Vector3::new(dq[0], dq[1], dq[2]);
-                let mut rot = UnitQuaternion::from_scaled_axis(Vector3::new(dq[3], dq[4], dq[5])) * pose.rotation;
+                let mut rot = UnitQuaternion::from_scaled_axis(Vector3::new(dq[3], dq[4], dq[5]))
+                    * pose.rotation;
                 rot.renormalize();
                 pose.rotation = rot;
                 *theta += wrap_angle(heading(&rot) - before);
@@ -288,7 +306,11 @@ pub struct World {
 
 fn check_finite(what: &'static str, v: &[f64]) -> Result<(), WorldError> {
     match v.iter().position(|x| !x.is_finite()) {
-        Some(index) => Err(WorldError::NonFinite { what, index, value: v[index] }),
+        Some(index) => Err(WorldError::NonFinite {
+            what,
+            index,
+            value: v[index],
+        }),
         None => Ok(()),
     }
 }
@@ -296,7 +318,11 @@ fn check_finite(what: &'static str, v: &[f64]) -> Result<(), WorldError> {
 impl World {
     /// A scene at its default joints and initial object pose, with default parameters.
     pub fn new(scene: SceneKind) -> World {
-        World::with_model(scene, HandModel::allegro_v4(), WorldParams::for_scene(scene))
+        World::with_model(
+            scene,
+            HandModel::allegro_v4(),
+            WorldParams::for_scene(scene),
+        )
     }
 
     /// A scene with a given hand description and parameters.
@@ -346,7 +372,11 @@ impl World {
 
     /// The task fingers' joints in `CONTRACTS.md` §2 order (12 or 8).
     pub fn task_joints(&self) -> Vec<f64> {
-        self.scene.task_fingers().iter().flat_map(|f| self.joints[f.index()]).collect()
+        self.scene
+            .task_fingers()
+            .iter()
+            .flat_map(|f| self.joints[f.index()])
+            .collect()
     }
 
     /// The object's configuration.
@@ -371,11 +401,20 @@ impl World {
     pub fn set_state(&mut self, state: &[f64]) -> Result<(), WorldError> {
         let n = self.scene.state_dim();
         if state.len() != n {
-            return Err(WorldError::StateLength { scene: self.scene.name(), expected: n, got: state.len() });
+            return Err(WorldError::StateLength {
+                scene: self.scene.name(),
+                expected: n,
+                got: state.len(),
+            });
         }
         check_finite("state", state)?;
         for (k, f) in self.scene.task_fingers().iter().enumerate() {
-            let q = [state[4 * k], state[4 * k + 1], state[4 * k + 2], state[4 * k + 3]];
+            let q = [
+                state[4 * k],
+                state[4 * k + 1],
+                state[4 * k + 2],
+                state[4 * k + 3],
+            ];
             self.joints[f.index()] = self.hand.clamp_to_limits(*f, &q);
         }
         let a = self.scene.action_dim();
@@ -418,8 +457,11 @@ impl World {
             .task_fingers()
             .iter()
             .map(|f| {
-                let c = self.hand.tip_center(&self.base, *f, &self.joints[f.index()]);
-                self.object_body.sphere_distance(&pose, &c, self.hand.tip_radius)
+                let c = self
+                    .hand
+                    .tip_center(&self.base, *f, &self.joints[f.index()]);
+                self.object_body
+                    .sphere_distance(&pose, &c, self.hand.tip_radius)
             })
             .collect()
     }
@@ -430,7 +472,9 @@ impl World {
         let r = self.hand.tip_radius;
         let mut worst: f64 = 0.0;
         for f in self.scene.task_fingers() {
-            let c = self.hand.tip_center(&self.base, *f, &self.joints[f.index()]);
+            let c = self
+                .hand
+                .tip_center(&self.base, *f, &self.joints[f.index()]);
             worst = worst.max(-self.object_body.sphere_distance(&pose, &c, r));
             if let Some(t) = &self.table {
                 worst = worst.max(-t.sphere_distance(&Isometry3::identity(), &c, r));
@@ -449,7 +493,11 @@ impl World {
     pub fn step_action(&mut self, dq: &[f64]) -> Result<StepReport, WorldError> {
         let n = self.scene.action_dim();
         if dq.len() != n {
-            return Err(WorldError::ActionLength { scene: self.scene.name(), expected: n, got: dq.len() });
+            return Err(WorldError::ActionLength {
+                scene: self.scene.name(),
+                expected: n,
+                got: dq.len(),
+            });
         }
         check_finite("action", dq)?;
         let mut targets = self.joints;
@@ -466,7 +514,10 @@ impl World {
     pub fn step_targets(&mut self, targets: &HandJoints) -> Result<StepReport, WorldError> {
         check_finite("target", targets.as_flattened())?;
         let fingers = self.scene.task_fingers();
-        let q_cmd: Vec<f64> = fingers.iter().flat_map(|f| self.hand.clamp_to_limits(*f, &targets[f.index()])).collect();
+        let q_cmd: Vec<f64> = fingers
+            .iter()
+            .flat_map(|f| self.hand.clamp_to_limits(*f, &targets[f.index()]))
+            .collect();
         let mut report = StepReport {
             substeps_run: 0,
             contacts: Vec::new(),
@@ -503,7 +554,10 @@ impl World {
         self.scene
             .task_fingers()
             .iter()
-            .map(|f| self.hand.finger_frames(&self.base, *f, &self.joints[f.index()]))
+            .map(|f| {
+                self.hand
+                    .finger_frames(&self.base, *f, &self.joints[f.index()])
+            })
             .collect()
     }
 
@@ -516,7 +570,10 @@ impl World {
             ObjectState::Screwdriver { orientation, .. } => {
                 let r = orientation.to_rotation_matrix();
                 let i_body = Matrix3::from_diagonal(&Vector3::from(screwdriver::INERTIA_PIVOT));
-                let max_i = screwdriver::INERTIA_PIVOT.iter().copied().fold(0.0, f64::max);
+                let max_i = screwdriver::INERTIA_PIVOT
+                    .iter()
+                    .copied()
+                    .fold(0.0, f64::max);
                 let eps = regulariser(p.kp, p.mass_scale, max_i);
                 let m_world = r.matrix() * i_body * r.matrix().transpose() * eps;
                 // Joint-space damping D on (roll, pitch, yaw) mapped to ω: ω = E θ̇, so the
@@ -535,14 +592,19 @@ impl World {
                 let block = m_world + damp + Matrix3::identity() * 1e-9;
                 let com = r * Vector3::new(0.0, 0.0, screwdriver::COM_HEIGHT);
                 let torque = com.cross(&Vector3::new(0.0, 0.0, -screwdriver::MASS * g));
-                (DMatrix::from_iterator(3, 3, block.iter().copied()), torque.iter().copied().collect())
+                (
+                    DMatrix::from_iterator(3, 3, block.iter().copied()),
+                    torque.iter().copied().collect(),
+                )
             }
             ObjectState::Card { pose, .. } => {
                 let inertia = card::inertia();
                 let max_m = card::MASS.max(inertia.iter().copied().fold(0.0, f64::max));
                 let eps = regulariser(p.kp, p.mass_scale, max_m);
                 let rot = pose.rotation.to_rotation_matrix();
-                let i_world = rot.matrix() * Matrix3::from_diagonal(&Vector3::from(inertia)) * rot.matrix().transpose();
+                let i_world = rot.matrix()
+                    * Matrix3::from_diagonal(&Vector3::from(inertia))
+                    * rot.matrix().transpose();
                 let mut block = DMatrix::zeros(6, 6);
                 for i in 0..3 {
                     block[(i, i)] = eps * card::MASS + p.damping[0] / h + 1e-9;
@@ -568,8 +630,12 @@ impl World {
         let names: Vec<&'static str> = fingers.iter().map(|f| f.name()).collect();
         let pose = self.object.pose();
         let dofs = match self.object {
-            ObjectState::Screwdriver { .. } => contacts::ObjectDofs::Pivot { pivot: screwdriver::pivot() },
-            ObjectState::Card { pose, .. } => contacts::ObjectDofs::Free { origin: Point3::from(pose.translation.vector) },
+            ObjectState::Screwdriver { .. } => contacts::ObjectDofs::Pivot {
+                pivot: screwdriver::pivot(),
+            },
+            ObjectState::Card { pose, .. } => contacts::ObjectDofs::Free {
+                origin: Point3::from(pose.translation.vector),
+            },
         };
         let cands = contacts::candidates(&contacts::ContactInputs {
             scene: self.scene,
@@ -594,7 +660,8 @@ impl World {
             p[(i, i)] = self.params.kp;
             c[i] = -self.params.kp * (q_cmd[i] - q_now[i]);
         }
-        p.view_mut((n_a, n_a), (dofs.count(), dofs.count())).copy_from(&block);
+        p.view_mut((n_a, n_a), (dofs.count(), dofs.count()))
+            .copy_from(&block);
         for (i, f) in force_u.iter().enumerate() {
             c[n_a + i] = -f;
         }
@@ -613,14 +680,27 @@ impl World {
             Vec::new()
         };
         let rows: Vec<socp::ConeRow> = cands.iter().map(|c| c.row.clone()).collect();
-        let sol = socp::solve(&socp::Program { p: &p, c: &c, cones: &rows, bounds: &bounds })
-            .map_err(WorldError::Setup)?;
+        let sol = socp::solve(&socp::Program {
+            p: &p,
+            c: &c,
+            cones: &rows,
+            bounds: &bounds,
+        })
+        .map_err(WorldError::Setup)?;
         match sol.status {
             SolverStatus::Solved | SolverStatus::AlmostSolved => {}
-            other => return Err(WorldError::Solver { substep, status: format!("{other:?}") }),
+            other => {
+                return Err(WorldError::Solver {
+                    substep,
+                    status: format!("{other:?}"),
+                });
+            }
         }
         if sol.x.iter().any(|v| !v.is_finite()) {
-            return Err(WorldError::Solver { substep, status: "non-finite solution".into() });
+            return Err(WorldError::Solver {
+                substep,
+                status: "non-finite solution".into(),
+            });
         }
         let reports = cands
             .iter()
@@ -655,7 +735,11 @@ impl World {
 /// qsim's mass scaling: `ε` such that the largest mass entry becomes `kp / s` (spec §1.1).
 /// A non-positive or non-finite `s` means "use the true mass" (ε = 1).
 fn regulariser(kp: f64, s: f64, max_mass: f64) -> f64 {
-    if s.is_finite() && s > 0.0 && max_mass > 0.0 { kp / (s * max_mass) } else { 1.0 }
+    if s.is_finite() && s > 0.0 && max_mass > 0.0 {
+        kp / (s * max_mass)
+    } else {
+        1.0
+    }
 }
 
 #[cfg(test)]
@@ -685,8 +769,17 @@ mod tests {
         for (a, b) in s.iter().zip(&back) {
             assert!((a - b).abs() < 1e-12);
         }
-        assert!(matches!(w.set_state(&s[..5]), Err(WorldError::StateLength { .. })));
-        assert!(matches!(w.step_action(&[0.0; 3]), Err(WorldError::ActionLength { .. })));
-        assert!(matches!(w.step_action(&[f64::NAN; 8]), Err(WorldError::NonFinite { .. })));
+        assert!(matches!(
+            w.set_state(&s[..5]),
+            Err(WorldError::StateLength { .. })
+        ));
+        assert!(matches!(
+            w.step_action(&[0.0; 3]),
+            Err(WorldError::ActionLength { .. })
+        ));
+        assert!(matches!(
+            w.step_action(&[f64::NAN; 8]),
+            Err(WorldError::NonFinite { .. })
+        ));
     }
 }

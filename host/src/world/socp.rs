@@ -8,7 +8,9 @@
 //! with `x = [δq_a ; δq_u]`. The duals of the cones are the contact forces.
 
 use clarabel::algebra::CscMatrix;
-use clarabel::solver::{DefaultSettingsBuilder, DefaultSolver, IPSolver, SolverStatus, SupportedConeT};
+use clarabel::solver::{
+    DefaultSettingsBuilder, DefaultSolver, IPSolver, SolverStatus, SupportedConeT,
+};
 use nalgebra::{DMatrix, Matrix3xX, Vector3};
 
 /// One contact row block: relative-velocity Jacobian and contact frame.
@@ -52,7 +54,11 @@ pub(crate) struct Solution {
 
 /// An orthonormal tangent pair for a unit normal (deterministic).
 pub(crate) fn tangents(n: &Vector3<f64>) -> (Vector3<f64>, Vector3<f64>) {
-    let a = if n.x.abs() < 0.9 { Vector3::x() } else { Vector3::y() };
+    let a = if n.x.abs() < 0.9 {
+        Vector3::x()
+    } else {
+        Vector3::y()
+    };
     let t1 = n.cross(&a).normalize();
     let t2 = n.cross(&t1);
     (t1, t2)
@@ -127,8 +133,8 @@ pub(crate) fn solve(prog: &Program<'_>) -> Result<Solution, String> {
         .max_iter(100)
         .build()
         .map_err(|e| format!("settings: {e:?}"))?;
-    let mut solver =
-        DefaultSolver::new(&p, prog.c, &a, &b, &cone_spec, settings).map_err(|e| format!("setup: {e:?}"))?;
+    let mut solver = DefaultSolver::new(&p, prog.c, &a, &b, &cone_spec, settings)
+        .map_err(|e| format!("setup: {e:?}"))?;
     solver.solve();
     let sol = &solver.solution;
     let forces_on_a = prog
@@ -141,7 +147,12 @@ pub(crate) fn solve(prog: &Program<'_>) -> Result<Solution, String> {
             cone.normal * (z[0] / cone.mu) + t1 * z[1] + t2 * z[2]
         })
         .collect();
-    Ok(Solution { x: sol.x.clone(), forces_on_a, status: sol.status, iterations: sol.iterations })
+    Ok(Solution {
+        x: sol.x.clone(),
+        forces_on_a,
+        status: sol.status,
+        iterations: sol.iterations,
+    })
 }
 
 #[cfg(test)]
@@ -158,8 +169,19 @@ mod tests {
         let c = [-k * 0.004, 0.0, k * 0.01];
         let mut jac = Matrix3xX::zeros(3);
         jac.fill_with_identity();
-        let cone = ConeRow { phi: 0.0, mu: 0.5, normal: Vector3::z(), jac };
-        let sol = solve(&Program { p: &p, c: &c, cones: &[cone], bounds: &[] }).unwrap();
+        let cone = ConeRow {
+            phi: 0.0,
+            mu: 0.5,
+            normal: Vector3::z(),
+            jac,
+        };
+        let sol = solve(&Program {
+            p: &p,
+            c: &c,
+            cones: &[cone],
+            bounds: &[],
+        })
+        .unwrap();
         assert_eq!(sol.status, SolverStatus::Solved);
         // Normal force k·0.01 = 1 N on the point (+z); the tangential pull k·0.004 = 0.4 N is
         // inside the friction limit 0.5 N, so the point sticks and friction carries all of it.
@@ -171,8 +193,19 @@ mod tests {
         let c = [-k * 0.01, 0.0, k * 0.01];
         let mut jac = Matrix3xX::zeros(3);
         jac.fill_with_identity();
-        let cone = ConeRow { phi: 0.0, mu: 0.5, normal: Vector3::z(), jac };
-        let sol = solve(&Program { p: &p, c: &c, cones: &[cone], bounds: &[] }).unwrap();
+        let cone = ConeRow {
+            phi: 0.0,
+            mu: 0.5,
+            normal: Vector3::z(),
+            jac,
+        };
+        let sol = solve(&Program {
+            p: &p,
+            c: &c,
+            cones: &[cone],
+            bounds: &[],
+        })
+        .unwrap();
         assert!(sol.x[0] > 1e-3, "{:?}", sol.x);
         assert!((sol.x[2] - 0.5 * sol.x[0]).abs() < 1e-6, "{:?}", sol.x);
         let f = sol.forces_on_a[0];
@@ -183,8 +216,18 @@ mod tests {
     fn bounds_are_respected() {
         let p = DMatrix::identity(2, 2);
         let c = [-1.0, 1.0];
-        let sol = solve(&Program { p: &p, c: &c, cones: &[], bounds: &[(-0.5, 0.5), (-0.2, 0.2)] }).unwrap();
+        let sol = solve(&Program {
+            p: &p,
+            c: &c,
+            cones: &[],
+            bounds: &[(-0.5, 0.5), (-0.2, 0.2)],
+        })
+        .unwrap();
         assert_eq!(sol.status, SolverStatus::Solved);
-        assert!((sol.x[0] - 0.5).abs() < 1e-6 && (sol.x[1] + 0.2).abs() < 1e-6, "{:?}", sol.x);
+        assert!(
+            (sol.x[0] - 0.5).abs() < 1e-6 && (sol.x[1] + 0.2).abs() < 1e-6,
+            "{:?}",
+            sol.x
+        );
     }
 }
