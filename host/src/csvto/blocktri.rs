@@ -11,6 +11,9 @@
 //! vectors side by side, so row `i` of the batch is `rhs[i*k..(i+1)*k]`; the inner loops run
 //! over the `k` vectors and vectorise.
 
+// Index loops over the fixed-width right-hand-side rows vectorise best as written.
+#![allow(clippy::needless_range_loop)]
+
 /// Dot product with eight independent accumulators, so it vectorises (a plain fold must
 /// keep the sequential rounding order and does not).
 #[inline]
@@ -67,6 +70,15 @@ pub fn cholesky_in_place(a: &mut [f64], m: usize) -> usize {
 /// Solve `L Y = B` in place for lower-triangular `L` (`m×m`) and `k` right-hand sides stored
 /// constraint-major in `b` (`m×k`).
 pub fn forward_sub(l: &[f64], m: usize, b: &mut [f64], k: usize) {
+    match k {
+        16 => forward_sub_k::<16>(l, m, b),
+        8 => forward_sub_k::<8>(l, m, b),
+        1 => forward_sub_k::<1>(l, m, b),
+        _ => forward_sub_dyn(l, m, b, k),
+    }
+}
+
+fn forward_sub_dyn(l: &[f64], m: usize, b: &mut [f64], k: usize) {
     for i in 0..m {
         let (head, tail) = b.split_at_mut(i * k);
         let bi = &mut tail[..k];
@@ -83,8 +95,37 @@ pub fn forward_sub(l: &[f64], m: usize, b: &mut [f64], k: usize) {
     }
 }
 
+/// [`forward_sub`] with the number of right-hand sides fixed at compile time, so the inner
+/// loop is fully unrolled and vectorised.
+fn forward_sub_k<const K: usize>(l: &[f64], m: usize, b: &mut [f64]) {
+    let (rows, _) = b.as_chunks_mut::<K>();
+    for i in 0..m {
+        let (head, tail) = rows.split_at_mut(i);
+        let mut acc = tail[0];
+        let li = &l[i * m..i * m + i];
+        for (lij, bj) in li.iter().zip(head.iter()) {
+            for c in 0..K {
+                acc[c] -= lij * bj[c];
+            }
+        }
+        let inv = 1.0 / l[i * m + i];
+        for c in 0..K {
+            tail[0][c] = acc[c] * inv;
+        }
+    }
+}
+
 /// Solve `Lᵀ Y = B` in place for lower-triangular `L` (`m×m`) and `k` right-hand sides.
 pub fn backward_sub_transposed(l: &[f64], m: usize, b: &mut [f64], k: usize) {
+    match k {
+        16 => backward_sub_k::<16>(l, m, b),
+        8 => backward_sub_k::<8>(l, m, b),
+        1 => backward_sub_k::<1>(l, m, b),
+        _ => backward_sub_dyn(l, m, b, k),
+    }
+}
+
+fn backward_sub_dyn(l: &[f64], m: usize, b: &mut [f64], k: usize) {
     for i in (0..m).rev() {
         let (head, tail) = b.split_at_mut((i + 1) * k);
         let bi = &mut head[i * k..];
@@ -97,6 +138,25 @@ pub fn backward_sub_transposed(l: &[f64], m: usize, b: &mut [f64], k: usize) {
         let inv = 1.0 / l[i * m + i];
         for v in bi.iter_mut() {
             *v *= inv;
+        }
+    }
+}
+
+/// [`backward_sub_transposed`] with `K` right-hand sides fixed at compile time.
+fn backward_sub_k<const K: usize>(l: &[f64], m: usize, b: &mut [f64]) {
+    let (rows, _) = b.as_chunks_mut::<K>();
+    for i in (0..m).rev() {
+        let (head, tail) = rows.split_at_mut(i + 1);
+        let mut acc = head[i];
+        for (q, bj) in tail.iter().enumerate() {
+            let lji = l[(i + 1 + q) * m + i];
+            for c in 0..K {
+                acc[c] -= lji * bj[c];
+            }
+        }
+        let inv = 1.0 / l[i * m + i];
+        for c in 0..K {
+            head[i][c] = acc[c] * inv;
         }
     }
 }
@@ -182,6 +242,59 @@ impl BlockTriFactor {
 
     /// Solve `A X = B` in place for `k` right-hand sides stored constraint-major (`dim×k`).
     pub fn solve_in_place(&self, b: &mut [f64], k: usize) {
+        debug_assert_eq!(b.len(), self.dim() * k);
+        match k {
+            16 => self.solve_k::<16>(b),
+            8 => self.solve_k::<8>(b),
+            1 => self.solve_k::<1>(b),
+            _ => self.solve_dyn(b, k),
+        }
+    }
+
+    /// [`Self::solve_in_place`] with `K` right-hand sides fixed at compile time.
+    fn solve_k<const K: usize>(&self, b: &mut [f64]) {
+        let h = self.sizes.len();
+        let (rows, _) = b.as_chunks_mut::<K>();
+        for t in 0..h {
+            let (m, o) = (self.sizes[t], self.offsets[t]);
+            if t > 0 {
+                let (mp, op) = (self.sizes[t - 1], self.offsets[t - 1]);
+                let (prev, cur) = rows.split_at_mut(o);
+                let prev = &prev[op..op + mp];
+                let c = &self.sub[t];
+                for &r in &self.live[t] {
+                    let mut acc = cur[r];
+                    for (cq, pq) in c[r * mp..(r + 1) * mp].iter().zip(prev) {
+                        for j in 0..K {
+                            acc[j] -= cq * pq[j];
+                        }
+                    }
+                    cur[r] = acc;
+                }
+            }
+            forward_sub_k::<K>(&self.diag[t], m, rows[o..o + m].as_flattened_mut());
+        }
+        for t in (0..h).rev() {
+            let (m, o) = (self.sizes[t], self.offsets[t]);
+            if t + 1 < h {
+                let on = self.offsets[t + 1];
+                let (cur, next) = rows.split_at_mut(on);
+                let cur = &mut cur[o..o + m];
+                let c = &self.sub[t + 1];
+                for &r in &self.live[t + 1] {
+                    let nr = next[r];
+                    for (cq, dst) in c[r * m..(r + 1) * m].iter().zip(cur.iter_mut()) {
+                        for j in 0..K {
+                            dst[j] -= cq * nr[j];
+                        }
+                    }
+                }
+            }
+            backward_sub_k::<K>(&self.diag[t], m, rows[o..o + m].as_flattened_mut());
+        }
+    }
+
+    fn solve_dyn(&self, b: &mut [f64], k: usize) {
         let h = self.sizes.len();
         debug_assert_eq!(b.len(), self.dim() * k);
         // Forward: y_t = L_t⁻¹ (b_t − C_t y_{t−1}).

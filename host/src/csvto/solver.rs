@@ -108,38 +108,32 @@ pub fn solve(
         let kern = RbfKernel::new(particles);
         let two_over_h = 2.0 / kern.bandwidth;
         // S[:, m] = Σ_n P_n k_nm [γ(−∇J_n) − (2/h)(x_n − x_m)], coordinate-major (dim×N).
-        let sum = (0..np)
+        // Each particle's projected block in parallel, then summed in a fixed order so that
+        // the result does not depend on thread scheduling.
+        let blocks: Vec<Vec<f64>> = (0..np)
             .into_par_iter()
-            .fold(
-                || (vec![0.0; dim * np], Vec::new(), vec![0.0; dim * np]),
-                |(mut acc, mut scratch, mut v), n| {
-                    let xn = &particles[n];
-                    let gn = &evals[n].grad;
-                    v.fill(0.0);
-                    for m in 0..np {
-                        let knm = kern.at(n, m);
-                        let xm = &particles[m];
-                        for c in 0..dim_x {
-                            v[c * np + m] = knm * (-g * gn[c] - two_over_h * (xn[c] - xm[c]));
-                        }
+            .map(|n| {
+                let xn = &particles[n];
+                let gn = &evals[n].grad;
+                let mut v = vec![0.0; dim * np];
+                for m in 0..np {
+                    let knm = kern.at(n, m);
+                    let xm = &particles[m];
+                    for c in 0..dim_x {
+                        v[c * np + m] = knm * (-g * gn[c] - two_over_h * (xn[c] - xm[c]));
                     }
-                    evals[n].lin.project(&mut v, np, &mut scratch);
-                    for (a, b) in acc.iter_mut().zip(&v) {
-                        *a += b;
-                    }
-                    (acc, scratch, v)
-                },
-            )
-            .map(|(acc, _, _)| acc)
-            .reduce(
-                || vec![0.0; dim * np],
-                |mut a, b| {
-                    for (x, y) in a.iter_mut().zip(&b) {
-                        *x += y;
-                    }
-                    a
-                },
-            );
+                }
+                let mut scratch = Vec::new();
+                evals[n].lin.project(&mut v, np, &mut scratch);
+                v
+            })
+            .collect();
+        let mut sum = vec![0.0; dim * np];
+        for b in &blocks {
+            for (a, x) in sum.iter_mut().zip(b) {
+                *a += x;
+            }
+        }
         let inv_n = 1.0 / np as f64;
         particles
             .par_iter_mut()
