@@ -118,33 +118,40 @@ impl Linearization {
         let mut sizes = Vec::with_capacity(h);
         let mut diag = Vec::with_capacity(h);
         let mut sub = Vec::with_capacity(h);
-        // Dense local Jacobian (rows of this step, `width` columns) of the previous step,
-        // kept to form the coupling block.
-        let mut prev_dense: Vec<f64> = Vec::new();
-        let mut prev_m = 0usize;
-        let mut dense: Vec<f64> = Vec::new();
+        // This step's and the previous step's constraint blocks (the previous one is kept to
+        // form the coupling block); swapped after each step instead of copied.
+        let mut cur = StepConstraints::default();
+        let mut prev = StepConstraints::default();
         // Local non-zeros of each row of the current step: (local col, value).
         let mut local: Vec<Vec<(usize, f64)>> = Vec::new();
-        let mut sc = StepConstraints::default();
-        for_each_step(problem, layout, x, &mut sc, |t, c| {
+        fn jrow(c: &StepConstraints, r: usize, width: usize) -> &[f64] {
+            let me = c.eq.len();
+            if r < me {
+                &c.jac_eq[r * width..(r + 1) * width]
+            } else {
+                &c.jac_ineq[(r - me) * width..(r - me + 1) * width]
+            }
+        }
+        for t in 0..h {
+            let prev_state = if t == 0 {
+                problem.start_state()
+            } else {
+                &x[(t - 1) * n..(t - 1) * n + ds]
+            };
+            cur.reset(layout.n_eq[t], layout.n_ineq[t], width);
+            problem.step_constraints(t, prev_state, &x[t * n..(t + 1) * n], &mut cur);
+            let c = &cur;
             let me = c.eq.len();
             let mi = c.ineq.len();
             let m = me + mi;
-            dense.clear();
-            dense.extend_from_slice(&c.jac_eq);
-            dense.extend_from_slice(&c.jac_ineq);
-            if t == 0 {
-                // The start state is fixed: no derivative with respect to it.
-                for r in 0..m {
-                    dense[r * width..r * width + ds].fill(0.0);
-                }
-            }
+            // The start state is fixed: no derivative with respect to it at t = 0.
+            let first_col = if t == 0 { ds } else { 0 };
             local.resize_with(m, Vec::new);
             for r in 0..m {
                 let lr = &mut local[r];
                 lr.clear();
-                let row = &dense[r * width..(r + 1) * width];
-                for (lc, &v) in row.iter().enumerate() {
+                let row = jrow(c, r, width);
+                for (lc, &v) in row.iter().enumerate().skip(first_col) {
                     if v != 0.0 {
                         lr.push((lc, v));
                         let gc = if lc < ds {
@@ -172,7 +179,7 @@ impl Linearization {
             let mut d = vec![0.0; m * m];
             for r in 0..m {
                 for s in 0..=r {
-                    let rs = &dense[s * width..(s + 1) * width];
+                    let rs = jrow(c, s, width);
                     let mut acc = 0.0;
                     for &(lc, v) in &local[r] {
                         acc += v * rs[lc];
@@ -191,10 +198,14 @@ impl Linearization {
             // step's row columns (its first `ds` entries are the state it produced).
             let mut b = Vec::new();
             if t > 0 {
+                let prev_m = prev.eq.len() + prev.ineq.len();
                 b = vec![0.0; m * prev_m];
                 for r in 0..m {
+                    if local[r].first().is_none_or(|&(lc, _)| lc >= ds) {
+                        continue;
+                    }
                     for s in 0..prev_m {
-                        let ps = &prev_dense[s * width + ds..s * width + ds + ds];
+                        let ps = &jrow(&prev, s, width)[ds..ds + ds];
                         let mut acc = 0.0;
                         for &(lc, v) in &local[r] {
                             if lc < ds {
@@ -210,9 +221,8 @@ impl Linearization {
             sizes.push(m);
             diag.push(d);
             sub.push(b);
-            std::mem::swap(&mut prev_dense, &mut dense);
-            prev_m = m;
-        });
+            std::mem::swap(&mut prev, &mut cur);
+        }
         let factor = BlockTriFactor::factor(sizes, diag, sub);
         Self {
             dim_x,
