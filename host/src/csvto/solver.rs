@@ -23,6 +23,11 @@ pub struct CsvtoSettings {
     pub slack_bound: f64,
     /// Iteration counts above this anneal `γ` linearly from 0 (spec: 50).
     pub anneal_above: usize,
+    /// Clip the Stein part `α_J φ` and the constraint part `α_C ξ` to
+    /// [`Self::max_step_norm`] separately instead of clipping their sum (spec: the sum).
+    /// With very large cost gradients (the card's 1.5e5 goal weight) the summed clip scales
+    /// the constraint correction down with the cost step and feasibility is lost.
+    pub clip_separately: bool,
 }
 
 impl Default for CsvtoSettings {
@@ -35,6 +40,7 @@ impl Default for CsvtoSettings {
             max_step_norm: 1.0,
             slack_bound: 1e3,
             anneal_above: 50,
+            clip_separately: false,
         }
     }
 }
@@ -146,16 +152,22 @@ pub fn solve(
                 lin.project(&mut phi, 1, &mut scratch);
                 let xi = lin.constraint_step();
                 // Δ = α_J(−φ) + α_C ξ, clipped, then x ← x − εΔ.
-                let mut delta: Vec<f64> = phi
-                    .iter()
-                    .zip(&xi)
-                    .map(|(p, c)| -settings.alpha_j * p + settings.alpha_c * c)
-                    .collect();
-                let norm = delta.iter().map(|d| d * d).sum::<f64>().sqrt();
-                if norm > settings.max_step_norm {
-                    let s = settings.max_step_norm / norm;
-                    delta.iter_mut().for_each(|d| *d *= s);
+                let clip = |v: &mut [f64]| {
+                    let norm = v.iter().map(|d| d * d).sum::<f64>().sqrt();
+                    if norm > settings.max_step_norm {
+                        let s = settings.max_step_norm / norm;
+                        v.iter_mut().for_each(|d| *d *= s);
+                    }
+                };
+                let mut stein: Vec<f64> = phi.iter().map(|p| -settings.alpha_j * p).collect();
+                let mut correction: Vec<f64> = xi.iter().map(|c| settings.alpha_c * c).collect();
+                if settings.clip_separately {
+                    clip(&mut stein);
+                    clip(&mut correction);
                 }
+                let mut delta: Vec<f64> =
+                    stein.iter().zip(&correction).map(|(a, b)| a + b).collect();
+                clip(&mut delta);
                 for c in 0..dim_x {
                     x[c] -= settings.step_size * delta[c];
                 }
