@@ -64,11 +64,6 @@ pub const DQ_BOUND: f64 = PI / 5.0;
 /// Torque limit used to bound `Δq` by `τ_max / K_p`.
 pub const TORQUE_LIMIT: f64 = 1.0;
 
-/// Dual-number width for one contact finger's step terms: `q_t(4) o_t(3) q_{t+1}(4)
-/// o_{t+1}(3) Δq(4) f(3)`.
-const W: usize = 21;
-type D21 = Dual<W>;
-
 /// Where a problem starts and what it aims for.
 #[derive(Debug, Clone, PartialEq)]
 pub struct ProblemSpec {
@@ -167,15 +162,15 @@ struct Lifted<S> {
     jac: [V3<S>; 4],
 }
 
-/// Per-finger step terms of a contact finger.
-struct ContactTerms<S> {
-    sdf: S,
-    roll: [S; 2],
-    balance: [S; 4],
-    wrench: [S; 3],
-    friction: [S; PYRAMID_FACES],
+/// Terms of a contact finger at `s_{t+1}`, over `[q_{t+1}, o_{t+1}, f]`.
+struct NextTerms {
+    sdf: Dual<10>,
+    /// `−J_cᵀf − K_p q_{t+1}`; the caller adds `K_p(q_t + Δq_t)`.
+    balance: [Dual<10>; 4],
+    wrench: [Dual<10>; 3],
+    friction: [Dual<10>; PYRAMID_FACES],
     /// `f_min + n·f` (≤ 0: the finger presses with at least `f_min`).
-    min_normal: S,
+    min_normal: Dual<10>,
 }
 
 impl AllegroProblem {
@@ -355,18 +350,11 @@ impl AllegroProblem {
         }
     }
 
-    /// Geometry of finger `i` at the joints `v[oq..oq+4]` and object pose `v[oo..oo+3]`,
-    /// computed in 7-wide dual numbers (the expensive kinematics and distance) and lifted
-    /// into the caller's wider scalar.
-    fn lifted_contact<S: Lift>(&self, i: usize, v: &[S; W], oq: usize, oo: usize) -> Lifted<S> {
-        let vals: [f64; 7] = std::array::from_fn(|k| {
-            if k < 4 {
-                v[oq + k].val()
-            } else {
-                v[oo + k - 4].val()
-            }
-        });
-        let d: [Dual<7>; 7] = seed(&vals);
+    /// Geometry of finger `i` at joints `vals[..4]` and object pose `vals[4..]`, computed in
+    /// 7-wide dual numbers (the expensive kinematics and distance) and lifted into the
+    /// caller's wider dual, whose joints start at column `oq` and object pose at `oo`.
+    fn lifted_contact<S: Lift>(&self, i: usize, vals: &[f64; 7], oq: usize, oo: usize) -> Lifted<S> {
+        let d: [Dual<7>; 7] = seed(vals);
         let c = self.contact(i, &[d[0], d[1], d[2], d[3]], &[d[4], d[5], d[6]]);
         let jac = c.frames.point_jacobian(&c.finger_point);
         let l = |x: Dual<7>| S::lift(x, oq, oo);
@@ -446,31 +434,34 @@ impl AllegroProblem {
         }
     }
 
-    /// Step terms of contact finger `i`.
-    fn contact_terms<S: Lift>(&self, i: usize, v: &[S; W]) -> ContactTerms<S> {
+    /// Rolling rows of contact finger `i` over `[q_t (4), o_t (3), q_{t+1} (4), o_{t+1} (3)]`:
+    /// the finger's contact point moves with the object's material point (tangentially).
+    fn rolling_terms(&self, i: usize, vals: &[f64; 14]) -> [Dual<14>; 2] {
+        let v: [Dual<14>; 14] = seed(vals);
         let qt = [v[0], v[1], v[2], v[3]];
         let ot = [v[4], v[5], v[6]];
         let qn = [v[7], v[8], v[9], v[10]];
         let on = [v[11], v[12], v[13]];
-        let dq = [v[14], v[15], v[16], v[17]];
-        let f = V3([v[18], v[19], v[20]]);
-        let (ct, cn) = (
-            self.lifted_contact::<S>(i, v, 0, 4),
-            self.lifted_contact::<S>(i, v, 7, 11),
-        );
-        // Rolling: the finger's contact point moves with the object's material point.
-        let jt = &ct.jac;
+        let at_t: [f64; 7] = std::array::from_fn(|k| vals[k]);
+        let ct: Lifted<Dual<14>> = self.lifted_contact(i, &at_t, 0, 4);
         let mut dfinger = V3::zero();
         for k in 0..4 {
-            dfinger = dfinger.add(&jt[k].scale(qn[k] - qt[k]));
+            dfinger = dfinger.add(&ct.jac[k].scale(qn[k] - qt[k]));
         }
         let rel = dfinger.sub(&self.object_motion(&ot, &on, &ct.surface));
         let (t1, t2) = tangents(&ct.normal);
-        let roll = [t1.dot(&rel), t2.dot(&rel)];
-        // Joint impedance balance at s_{t+1}.
-        let jn = &cn.jac;
-        let balance: [S; 4] =
-            std::array::from_fn(|k| -jn[k].dot(&f) + (qt[k] + dq[k] - qn[k]) * self.kp);
+        [t1.dot(&rel), t2.dot(&rel)]
+    }
+
+    /// Terms of contact finger `i` at `s_{t+1}` over `[q_{t+1} (4), o_{t+1} (3), f (3)]`.
+    fn next_terms(&self, i: usize, vals: &[f64; 10]) -> NextTerms {
+        let v: [Dual<10>; 10] = seed(vals);
+        let qn = [v[0], v[1], v[2], v[3]];
+        let f = V3([v[7], v[8], v[9]]);
+        let at_n: [f64; 7] = std::array::from_fn(|k| vals[k]);
+        let cn: Lifted<Dual<10>> = self.lifted_contact(i, &at_n, 0, 4);
+        // Joint impedance balance without its `K_p(q_t + Δq_t)` part (added by the caller).
+        let balance = std::array::from_fn(|k| -cn.jac[k].dot(&f) - qn[k] * self.kp);
         let wrench = match self.task {
             SceneKind::Screwdriver => {
                 cn.surface
@@ -486,32 +477,13 @@ impl AllegroProblem {
             let th = 2.0 * PI * j as f64 / PYRAMID_FACES as f64;
             a * th.cos() + b * th.sin() + c * PLANNER_FRICTION
         });
-        ContactTerms {
+        NextTerms {
             sdf: cn.sdf,
-            roll,
             balance,
             wrench,
             friction,
             min_normal: c + MIN_NORMAL_FORCE,
         }
-    }
-
-    /// Local Jacobian columns of contact finger `i` (slot `s`) dual variables.
-    fn contact_columns(&self, i: usize, s: usize) -> [usize; W] {
-        let ds = self.state_dim();
-        let nf = self.nf;
-        let mut m = [0; W];
-        for k in 0..4 {
-            m[k] = 4 * i + k;
-            m[7 + k] = ds + 4 * i + k;
-            m[14 + k] = ds + self.dq_col(i, k);
-        }
-        for k in 0..3 {
-            m[4 + k] = 4 * nf + k;
-            m[11 + k] = ds + 4 * nf + k;
-            m[18 + k] = ds + self.force_col(s, k);
-        }
-        m
     }
 
     /// Total equality rows of step `t` and the layout offsets.
@@ -563,15 +535,9 @@ trait Lift: Scalar {
     fn lift(x: Dual<7>, oq: usize, oo: usize) -> Self;
 }
 
-impl Lift for f64 {
-    fn lift(x: Dual<7>, _oq: usize, _oo: usize) -> Self {
-        x.v
-    }
-}
-
-impl Lift for D21 {
+impl<const N: usize> Lift for Dual<N> {
     fn lift(x: Dual<7>, oq: usize, oo: usize) -> Self {
-        let mut d = [0.0; W];
+        let mut d = [0.0; N];
         d[oq..oq + 4].copy_from_slice(&x.d[..4]);
         d[oo..oo + 3].copy_from_slice(&x.d[4..]);
         Dual { v: x.v, d }
@@ -631,38 +597,67 @@ impl Problem for AllegroProblem {
         let mut wrench_rows = [0.0f64; 3];
         for i in 0..nf {
             let Some(s) = self.slot[i] else { continue };
-            let map = self.contact_columns(i, s);
-            let mut vals = [0.0; W];
-            for (j, &c) in map.iter().enumerate() {
-                vals[j] = if c < ds { prev[c] } else { row[c - ds] };
-            }
-            let terms = self.contact_terms(i, &seed::<W>(&vals));
-            let mut put = |r: usize, x: &D21| {
-                out.eq[r] = x.v;
-                scatter(&mut out.jac_eq[r * width..(r + 1) * width], &map, &x.d, 1.0);
-            };
-            put(e, &terms.sdf);
-            put(e + 1, &terms.roll[0]);
-            put(e + 2, &terms.roll[1]);
+            // Columns: q_t, o_t (previous state), q_{t+1}, o_{t+1}, Δq, f (row).
+            let mut map14 = [0usize; 14];
+            let mut map10 = [0usize; 10];
             for k in 0..4 {
-                put(e + 3 + k, &terms.balance[k]);
+                map14[k] = 4 * i + k;
+                map14[7 + k] = ds + 4 * i + k;
+                map10[k] = ds + 4 * i + k;
+            }
+            for k in 0..3 {
+                map14[4 + k] = 4 * nf + k;
+                map14[11 + k] = ds + 4 * nf + k;
+                map10[4 + k] = ds + 4 * nf + k;
+                map10[7 + k] = ds + self.force_col(s, k);
+            }
+            let gather = |map: &[usize], out: &mut [f64]| {
+                for (o, &c) in out.iter_mut().zip(map) {
+                    *o = if c < ds { prev[c] } else { row[c - ds] };
+                }
+            };
+            let mut v14 = [0.0; 14];
+            gather(&map14, &mut v14);
+            let mut v10 = [0.0; 10];
+            gather(&map10, &mut v10);
+            let roll = self.rolling_terms(i, &v14);
+            let next = self.next_terms(i, &v10);
+            let put = |out: &mut StepConstraints, r: usize, value: f64, map: &[usize], d: &[f64]| {
+                out.eq[r] = value;
+                scatter(&mut out.jac_eq[r * width..(r + 1) * width], map, d, 1.0);
+            };
+            put(out, e, next.sdf.v, &map10, &next.sdf.d);
+            put(out, e + 1, roll[0].v, &map14, &roll[0].d);
+            put(out, e + 2, roll[1].v, &map14, &roll[1].d);
+            for k in 0..4 {
+                let r = e + 3 + k;
+                let (qc, dqc) = (4 * i + k, ds + self.dq_col(i, k));
+                put(
+                    out,
+                    r,
+                    next.balance[k].v + self.kp * (prev[qc] + row[dqc - ds]),
+                    &map10,
+                    &next.balance[k].d,
+                );
+                out.jac_eq[r * width + qc] += self.kp;
+                out.jac_eq[r * width + dqc] += self.kp;
             }
             e += 7;
             for k in 0..3 {
                 let r = obj_row + k;
-                wrench_rows[k] += terms.wrench[k].v;
+                wrench_rows[k] += next.wrench[k].v;
                 scatter(
                     &mut out.jac_eq[r * width..(r + 1) * width],
-                    &map,
-                    &terms.wrench[k].d,
+                    &map10,
+                    &next.wrench[k].d,
                     1.0,
                 );
             }
-            for term in terms.friction.iter().chain([&terms.min_normal]) {
+            for term in next.friction.iter().chain([&next.min_normal]) {
                 out.ineq[q] = term.v;
                 scatter(
                     &mut out.jac_ineq[q * width..(q + 1) * width],
-                    &map,
+                    &map10,
                     &term.d,
                     1.0,
                 );
