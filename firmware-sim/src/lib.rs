@@ -1,1 +1,228 @@
 //! `dips-firmware-sim`: the kernel as the hand's controller runs it.
+//!
+//! [`Firmware`] is the controller's request handler: it owns fixed buffers for the uploaded
+//! models (allocated once by the caller; nothing is allocated while serving) and answers each
+//! [`ToKernel`] message with one [`FromKernel`] message. [`serve`] runs it over any byte
+//! streams: COBS deframing with a fixed-capacity accumulator, postcard decoding, typed errors
+//! for bad frames, and it keeps serving after any of them.
+//!
+//! Planning is not wired in yet: a well-formed [`PlanRequest`] is answered with
+//! [`WireError::ModelNotLoaded`] until both models are uploaded, then with
+//! [`WireError::PlannerUnavailable`].
+
+use std::io::{self, Read, Write};
+
+use dips_wire::{
+    Feed, Frame, FrameAccumulator, FromKernel, Hello, HelloAck, MAX_ENCODED_FRAME_LEN,
+    MODEL_CHUNK_LEN, ModelAssembler, ModelRole, NO_REQUEST_ID, PROTOCOL_VERSION, PlanRequest,
+    RequestField, SCHEMA_KEY, Task, ToKernel, UploadError, WireError, decode_frame, encode_frame,
+};
+
+/// Size of each static model buffer of the `dips-firmware-sim` binary, in bytes.
+pub const MODEL_CAPACITY_BYTES: usize = 32 * 1024 * 1024;
+
+/// Bytes read from the input stream per read call.
+const READ_CHUNK_LEN: usize = 256;
+
+/// The controller's request handler and its state.
+#[derive(Debug)]
+pub struct Firmware<'m> {
+    greeted: bool,
+    denoiser: ModelAssembler<'m>,
+    discriminator: ModelAssembler<'m>,
+    active_upload: Option<ModelRole>,
+}
+
+impl<'m> Firmware<'m> {
+    /// A firmware that stores uploaded models in the two given buffers (their lengths are
+    /// the largest models accepted).
+    pub fn new(denoiser_buf: &'m mut [u8], discriminator_buf: &'m mut [u8]) -> Self {
+        Self {
+            greeted: false,
+            denoiser: ModelAssembler::new(denoiser_buf),
+            discriminator: ModelAssembler::new(discriminator_buf),
+            active_upload: None,
+        }
+    }
+
+    /// Start a new session (a new connection): a new `Hello` is required and any upload in
+    /// progress is abandoned. Loaded models stay loaded.
+    pub fn reset_session(&mut self) {
+        self.greeted = false;
+        if let Some(role) = self.active_upload.take() {
+            // Ending an unfinished upload discards it (the error is the point).
+            let _ = self.assembler_mut(role).end();
+        }
+    }
+
+    /// Whether a `Hello` with the right version has been received.
+    pub fn greeted(&self) -> bool {
+        self.greeted
+    }
+
+    /// The loaded model of a role (its bytes, CRC-checked).
+    pub fn model(&self, role: ModelRole) -> Option<&[u8]> {
+        self.assembler(role).model().map(|(_, bytes)| bytes)
+    }
+
+    fn assembler(&self, role: ModelRole) -> &ModelAssembler<'m> {
+        match role {
+            ModelRole::Denoiser => &self.denoiser,
+            ModelRole::Discriminator => &self.discriminator,
+        }
+    }
+
+    fn assembler_mut(&mut self, role: ModelRole) -> &mut ModelAssembler<'m> {
+        match role {
+            ModelRole::Denoiser => &mut self.denoiser,
+            ModelRole::Discriminator => &mut self.discriminator,
+        }
+    }
+
+    /// Answer one request.
+    pub fn handle(&mut self, request: &ToKernel) -> FromKernel {
+        match self.try_handle(request) {
+            Ok(reply) => reply,
+            Err(error) => FromKernel::Error(error),
+        }
+    }
+
+    fn try_handle(&mut self, request: &ToKernel) -> Result<FromKernel, WireError> {
+        if let ToKernel::Hello(hello) = request {
+            return self.hello(hello);
+        }
+        if !self.greeted {
+            return Err(WireError::HandshakeRequired);
+        }
+        match request {
+            ToKernel::Hello(_) => Err(WireError::HandshakeRequired),
+            ToKernel::PlanRequest(plan) => self.plan(plan),
+            ToKernel::ModelBegin(begin) => {
+                self.active_upload = Some(begin.role);
+                let result = self.assembler_mut(begin.role).begin(begin);
+                if result.is_err() {
+                    self.active_upload = None;
+                }
+                Ok(FromKernel::ModelAck(result?))
+            }
+            ToKernel::ModelChunk(chunk) => {
+                let role = self.active_upload.ok_or(UploadError::NotStarted)?;
+                Ok(FromKernel::ModelAck(self.assembler_mut(role).chunk(chunk)?))
+            }
+            ToKernel::ModelEnd => {
+                let role = self.active_upload.take().ok_or(UploadError::NotStarted)?;
+                Ok(FromKernel::ModelLoaded(self.assembler_mut(role).end()?))
+            }
+        }
+    }
+
+    fn hello(&mut self, hello: &Hello) -> Result<FromKernel, WireError> {
+        if hello.protocol_version != PROTOCOL_VERSION || hello.schema_key != SCHEMA_KEY {
+            self.greeted = false;
+            return Err(WireError::VersionMismatch {
+                kernel_version: PROTOCOL_VERSION,
+                host_version: hello.protocol_version,
+                kernel_schema_key: SCHEMA_KEY,
+                host_schema_key: hello.schema_key,
+            });
+        }
+        self.greeted = true;
+        Ok(FromKernel::HelloAck(HelloAck {
+            protocol_version: PROTOCOL_VERSION,
+            schema_key: SCHEMA_KEY,
+            max_frame_len_bytes: MAX_ENCODED_FRAME_LEN as u32,
+            model_chunk_len_bytes: MODEL_CHUNK_LEN as u32,
+        }))
+    }
+
+    fn plan(&mut self, plan: &PlanRequest) -> Result<FromKernel, WireError> {
+        let state_dim = match plan.task {
+            Task::Screwdriver => 16,
+            Task::Card => 12,
+        };
+        let invalid = |field| WireError::InvalidRequest { field };
+        if plan.start_state.len() != state_dim || plan.start_state.iter().any(|v| !v.is_finite()) {
+            return Err(invalid(RequestField::StartState));
+        }
+        if !plan.goal.is_finite() {
+            return Err(invalid(RequestField::Goal));
+        }
+        for role in [ModelRole::Denoiser, ModelRole::Discriminator] {
+            if self.model(role).is_none() {
+                return Err(WireError::ModelNotLoaded { role });
+            }
+        }
+        // The kernel planner and model engines are not wired into the firmware yet.
+        Err(WireError::PlannerUnavailable)
+    }
+}
+
+/// Counts of what [`serve`] saw.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct ServeStats {
+    /// Frames that decoded to a request.
+    pub requests: u64,
+    /// Frames dropped or refused as undecodable (bad COBS, too long, bad payload).
+    pub bad_frames: u64,
+    /// Replies written.
+    pub replies: u64,
+}
+
+/// Serve requests from `reader` until it ends, writing one reply frame per input frame to
+/// `writer` (flushed after every read). Returns when the input ends; I/O errors end it early.
+pub fn serve<R: Read, W: Write>(
+    firmware: &mut Firmware<'_>,
+    mut reader: R,
+    mut writer: W,
+) -> io::Result<ServeStats> {
+    let mut acc = FrameAccumulator::<MAX_ENCODED_FRAME_LEN>::new();
+    let mut rx = [0u8; READ_CHUNK_LEN];
+    let mut tx = [0u8; MAX_ENCODED_FRAME_LEN];
+    let mut stats = ServeStats::default();
+    loop {
+        let n = match reader.read(&mut rx) {
+            Ok(0) => return Ok(stats),
+            Ok(n) => n,
+            Err(e) if e.kind() == io::ErrorKind::Interrupted => continue,
+            Err(e) => return Err(e),
+        };
+        let mut window = rx.get(..n).unwrap_or(&[]);
+        loop {
+            let reply = match acc.feed(window) {
+                Feed::Consumed => break,
+                Feed::Frame { payload, remaining } => {
+                    window = remaining;
+                    match decode_frame::<ToKernel>(payload) {
+                        Ok(frame) => {
+                            stats.requests += 1;
+                            Frame {
+                                request_id: frame.request_id,
+                                body: firmware.handle(&frame.body),
+                            }
+                        }
+                        Err(e) => {
+                            stats.bad_frames += 1;
+                            Frame {
+                                request_id: e.request_id.unwrap_or(NO_REQUEST_ID),
+                                body: FromKernel::Error(e.error),
+                            }
+                        }
+                    }
+                }
+                Feed::Error { error, remaining } => {
+                    window = remaining;
+                    stats.bad_frames += 1;
+                    Frame {
+                        request_id: NO_REQUEST_ID,
+                        body: FromKernel::Error(error),
+                    }
+                }
+            };
+            let bytes = encode_frame(&reply, &mut tx)
+                .map_err(|e| io::Error::other(format!("reply does not fit a frame: {e}")))?;
+            writer.write_all(bytes)?;
+            stats.replies += 1;
+        }
+        writer.flush()?;
+    }
+}

@@ -379,6 +379,29 @@ impl HandModel {
             None => [0.0; 4],
         }
     }
+
+    /// Joints that bring the fingertip centre to `target` (world frame): `iterations` damped
+    /// least-squares steps from `q0`, each clamped to the joint limits. Returns the best found.
+    pub fn solve_tip_ik(
+        &self,
+        base: &Isometry3<f64>,
+        finger: Finger,
+        q0: &FingerJoints,
+        target: &Point3<f64>,
+        iterations: usize,
+    ) -> FingerJoints {
+        let mut q = *q0;
+        for _ in 0..iterations {
+            let err = target - self.tip_center(base, finger, &q);
+            if err.norm() < 1e-9 {
+                break;
+            }
+            let dq = self.tip_ik_step(base, finger, &q, &err, 1e-3);
+            let next: FingerJoints = std::array::from_fn(|i| q[i] + dq[i]);
+            q = self.clamp_to_limits(finger, &next);
+        }
+        q
+    }
 }
 
 /// Jacobian of a world point `p` attached to the distal link, from precomputed frames:
@@ -437,6 +460,17 @@ mod tests {
                 assert!((fd - j.column(i)).norm() < 1e-8, "{f:?} joint {i}");
             }
         }
+    }
+
+    #[test]
+    fn ik_reaches_a_nearby_target() {
+        let hand = HandModel::allegro_v4();
+        let base = Isometry3::identity();
+        let q0 = [0.0, 0.5, 0.5, 0.5];
+        let target =
+            hand.tip_center(&base, Finger::Middle, &q0) + Vector3::new(0.01, -0.005, 0.004);
+        let q = hand.solve_tip_ik(&base, Finger::Middle, &q0, &target, 20);
+        assert!((hand.tip_center(&base, Finger::Middle, &q) - target).norm() < 1e-7);
     }
 
     #[test]

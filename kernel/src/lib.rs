@@ -13,5 +13,11 @@
 #[cfg(test)]
 extern crate std;
 
+pub mod budget;
+pub mod diffusion;
 pub mod engine;
+pub mod mode;
+pub mod prior;
 pub mod rng;
+pub mod search;
+pub mod task;

@@ -77,7 +77,13 @@ impl KernelRng {
     pub fn weighted_index(&mut self, weights: &[f32]) -> Option<usize> {
         let total: f64 = weights
             .iter()
-            .map(|&w| if w.is_finite() && w > 0.0 { f64::from(w) } else { 0.0 })
+            .map(|&w| {
+                if w.is_finite() && w > 0.0 {
+                    f64::from(w)
+                } else {
+                    0.0
+                }
+            })
             .sum();
         if total <= 0.0 || !total.is_finite() {
             return None;

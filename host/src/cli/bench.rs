@@ -1,8 +1,22 @@
 //! `dips bench ...`: benchmarks that print JSON figures.
+//!
+//! `dips bench search` measures the DIPS A* (`dips_kernel::search`) with a cheap synthetic
+//! sampler, so the figure is the planner's own throughput (batch bookkeeping, task costs,
+//! resampling, open list), not the diffusion model's. The synthetic sampler below is a
+//! benchmark workload: an analytic segment generator with noise in the task's raw layout.
 
+use anyhow::{Context, bail};
 use clap::{Args, Subcommand};
-
-use super::bench_csvto;
+use dips_kernel::budget::Clock;
+use dips_kernel::mode::{ContactMode, SegmentDims, Task};
+use dips_kernel::prior::MarkovPrior;
+use dips_kernel::rng::KernelRng;
+use dips_kernel::search::{
+    PaperPlanner, Problem, SearchConfig, SearchStats, SegmentSampler, SegmentScorer, TaskObjective,
+};
+use dips_kernel::task::{CardObjective, ScrewdriverObjective};
+use serde_json::json;
+use std::time::{Duration, Instant};
 
 /// `dips bench`.
 #[derive(Debug, Args)]
@@ -15,13 +29,327 @@ pub struct BenchArgs {
 /// The benchmarks.
 #[derive(Debug, Subcommand)]
 pub enum BenchCommand {
+    /// Expansions per second of the A* contact search with a synthetic sampler.
+    Search(SearchBenchArgs),
+    /// Time of one 1 s action (all sub-steps) in each scene of the quasi-static world.
+    Sim(super::bench_sim::BenchSimArgs),
     /// Seconds per online CSVTO step (screwdriver turn, N = 16, 25 iterations, H = 12).
-    Csvto(bench_csvto::CsvtoBenchArgs),
+    Csvto(super::bench_csvto::CsvtoBenchArgs),
 }
 
-/// Run the command.
+/// `dips bench search`.
+#[derive(Debug, Args)]
+pub struct SearchBenchArgs {
+    /// Task whose sizes and costs are used (`screwdriver`: T=13, D=37, 3 modes; `card`:
+    /// T=9, D=29, 4 modes).
+    #[arg(long, default_value = "screwdriver")]
+    pub task: String,
+    /// Particles per node.
+    #[arg(long, default_value_t = 16)]
+    pub k: u16,
+    /// Search depth.
+    #[arg(long, default_value_t = 7)]
+    pub depth: u8,
+    /// Expansions per planning call (the node budget); the goal is out of reach so every
+    /// call spends exactly this many.
+    #[arg(long, default_value_t = 100)]
+    pub expansions_per_call: u32,
+    /// Seconds to measure for (after one warm-up call).
+    #[arg(long, default_value_t = 3.0)]
+    pub seconds: f64,
+    /// First seed; call `i` uses `seed + i`.
+    #[arg(long, default_value_t = 0)]
+    pub seed: u64,
+    /// Print JSON (the only output format; accepted for the CLI contract).
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// Run `dips bench`.
 pub fn run(args: BenchArgs) -> anyhow::Result<()> {
     match args.command {
-        BenchCommand::Csvto(a) => bench_csvto::run(a),
+        BenchCommand::Search(a) => search(&a),
+        BenchCommand::Sim(a) => super::bench_sim::main(a),
+        BenchCommand::Csvto(a) => super::bench_csvto::run(a),
     }
+}
+
+/// `std::time::Instant` as the kernel's clock.
+#[derive(Debug)]
+struct StdClock(Instant);
+
+impl Clock for StdClock {
+    fn now_us(&mut self) -> u64 {
+        u64::try_from(self.0.elapsed().as_micros()).unwrap_or(u64::MAX)
+    }
+}
+
+/// The synthetic sampler: from each start state, contact modes move the object toward the
+/// task goal (screwdriver yaw −π/6, card y −2 cm) with multiplicative noise, regrasps hold
+/// it with small noise; joints take a noisy random walk; actions are noise. Layout as in
+/// `CONTRACTS.md` §2.
+#[derive(Debug)]
+struct SyntheticSampler {
+    task: Task,
+    noise: f32,
+    time: Duration,
+}
+
+impl SegmentSampler for SyntheticSampler {
+    type Error = std::convert::Infallible;
+
+    fn max_batch(&self) -> usize {
+        usize::MAX
+    }
+
+    fn sample(
+        &mut self,
+        dims: &SegmentDims,
+        starts: &[f32],
+        modes: &[ContactMode],
+        rng: &mut KernelRng,
+        out: &mut [f32],
+    ) -> Result<(), Self::Error> {
+        let t0 = Instant::now();
+        let (rows, d, sd) = (dims.horizon, dims.dim(), dims.state_dim);
+        // Object columns: screwdriver roll, pitch, cos, sin at 12..16; card x, y, cos, sin
+        // at 8..12. Joint columns precede them.
+        let (obj, joints) = match self.task {
+            Task::Screwdriver => (12, 12),
+            Task::Card => (8, 8),
+        };
+        for (i, m) in modes.iter().enumerate() {
+            let s0 = &starts[i * sd..(i + 1) * sd];
+            let seg = &mut out[i * rows * d..(i + 1) * rows * d];
+            let moving = match self.task {
+                Task::Screwdriver => m.contact_count() == 3,
+                Task::Card => m.contact_count() > 0,
+            };
+            let scale = if moving {
+                1.0 + self.noise * rng.normal_f32()
+            } else {
+                0.1 * self.noise * rng.normal_f32()
+            };
+            let angle0 = s0[obj + 3].atan2(s0[obj + 2]);
+            for t in 0..rows {
+                let frac = t as f32 / (rows - 1).max(1) as f32;
+                let row = &mut seg[t * d..(t + 1) * d];
+                row[..sd].copy_from_slice(s0);
+                if t > 0 {
+                    for q in &mut row[..joints] {
+                        *q += 0.01 * rng.normal_f32();
+                    }
+                }
+                let mut angle = angle0;
+                match self.task {
+                    Task::Screwdriver => angle += frac * scale * -core::f32::consts::FRAC_PI_6,
+                    Task::Card => row[obj + 1] += frac * scale * -0.02,
+                }
+                row[obj + 2] = angle.cos();
+                row[obj + 3] = angle.sin();
+                for a in &mut row[sd..] {
+                    *a = if t + 1 < rows {
+                        0.05 * rng.normal_f32()
+                    } else {
+                        0.0
+                    };
+                }
+            }
+        }
+        self.time += t0.elapsed();
+        Ok(())
+    }
+}
+
+/// A synthetic Ψ: `exp(−0.01 · Σ x²)` over the segment (smoother segments score higher).
+#[derive(Debug, Default)]
+struct SyntheticScorer {
+    time: Duration,
+}
+
+impl SegmentScorer for SyntheticScorer {
+    type Error = std::convert::Infallible;
+
+    fn max_batch(&self) -> usize {
+        usize::MAX
+    }
+
+    fn score(
+        &mut self,
+        dims: &SegmentDims,
+        segments: &[f32],
+        modes: &[ContactMode],
+        out: &mut [f32],
+    ) -> Result<(), Self::Error> {
+        let t0 = Instant::now();
+        let n = dims.floats();
+        for (i, o) in out.iter_mut().enumerate().take(modes.len()) {
+            let e: f32 = segments[i * n..(i + 1) * n].iter().map(|v| v * v).sum();
+            *o = (-0.01 * e).exp();
+        }
+        self.time += t0.elapsed();
+        Ok(())
+    }
+}
+
+/// A raw start state at the nominal grasp: screwdriver yaw 0, card at the origin.
+fn start_state(task: Task) -> Vec<f32> {
+    match task {
+        Task::Screwdriver => {
+            vec![
+                0.1, 0.5, 0.5, 0.5, -0.1, 0.5, 0.65, 0.65, 1.2, 0.3, 0.2, 1.0, 0.0, 0.0, 1.0, 0.0,
+            ]
+        }
+        Task::Card => vec![
+            0.0, 0.35, 0.5, 0.225, 0.0, 0.35, 0.5, 0.225, 0.0, 0.0, 1.0, 0.0,
+        ],
+    }
+}
+
+fn search(a: &SearchBenchArgs) -> anyhow::Result<()> {
+    let task = Task::from_name(&a.task)
+        .map_err(|_| anyhow::anyhow!("unknown task {:?} (expected screwdriver or card)", a.task))?;
+    if !(a.seconds.is_finite() && a.seconds > 0.0) {
+        bail!("--seconds must be a positive number, got {}", a.seconds);
+    }
+    let config = SearchConfig {
+        k: a.k,
+        max_depth: a.depth,
+        node_budget: a.expansions_per_call,
+        time_budget_ms: 0,
+        ..if task == Task::Card {
+            SearchConfig::card()
+        } else {
+            SearchConfig::default()
+        }
+    };
+    config
+        .validate()
+        .with_context(|| "invalid search settings")?;
+    let prior = match task {
+        Task::Screwdriver => MarkovPrior::from_rows(
+            &[0.8, 0.1, 0.1],
+            &[&[0.1, 0.45, 0.45], &[0.45, 0.1, 0.45], &[0.45, 0.45, 0.1]],
+        ),
+        Task::Card => MarkovPrior::uniform(4),
+    }
+    .map_err(|e| anyhow::anyhow!("{e}"))?;
+    let start = start_state(task);
+    let problem = Problem {
+        task,
+        dims: task.dims(),
+        start: &start,
+        executed: None,
+        prior: &prior,
+    };
+    // Goals out of reach, so every call spends its node budget.
+    let screwdriver = ScrewdriverObjective {
+        reference_yaw: 0.0,
+        goal_yaw: -100.0,
+    };
+    let card = CardObjective { goal_y: -100.0 };
+    match task {
+        Task::Screwdriver => measure(a, &config, &problem, &screwdriver),
+        Task::Card => measure(a, &config, &problem, &card),
+    }
+}
+
+/// Plan repeatedly for `a.seconds` and print the figures.
+fn measure<O: TaskObjective>(
+    a: &SearchBenchArgs,
+    config: &SearchConfig,
+    problem: &Problem<'_>,
+    objective: &O,
+) -> anyhow::Result<()> {
+    let task = problem.task;
+    let mut planner: Box<PaperPlanner> = Box::new(PaperPlanner::new());
+    let mut sampler = SyntheticSampler {
+        task,
+        noise: 0.2,
+        time: Duration::ZERO,
+    };
+    let mut scorer = SyntheticScorer::default();
+    let mut clock = StdClock(Instant::now());
+
+    // Warm-up call (not measured).
+    let warm = planner.plan(
+        config,
+        problem,
+        &mut sampler,
+        &mut scorer,
+        objective,
+        &mut clock,
+    );
+    if !warm.status.has_plan() {
+        bail!("planning failed: {:?}", warm.status);
+    }
+    sampler.time = Duration::ZERO;
+    scorer.time = Duration::ZERO;
+
+    let mut total = SearchStats::default();
+    let mut calls = 0u64;
+    let mut last_status = warm.status;
+    let t0 = Instant::now();
+    while t0.elapsed().as_secs_f64() < a.seconds {
+        let c = SearchConfig {
+            seed: a.seed.wrapping_add(calls),
+            ..*config
+        };
+        let r = planner.plan(
+            &c,
+            problem,
+            &mut sampler,
+            &mut scorer,
+            objective,
+            &mut clock,
+        );
+        last_status = r.status;
+        total.nodes_expanded += r.stats.nodes_expanded;
+        total.nodes_generated += r.stats.nodes_generated;
+        total.segments_sampled += r.stats.segments_sampled;
+        total.sampler_calls += r.stats.sampler_calls;
+        calls += 1;
+    }
+    let elapsed = t0.elapsed().as_secs_f64();
+    let expansions = f64::from(total.nodes_expanded);
+    let workload = (sampler.time + scorer.time).as_secs_f64();
+    let dims = task.dims();
+    let out = json!({
+        "bench": "search",
+        "task": task.name(),
+        "sampler": "synthetic analytic segments with noise (host bench workload)",
+        "settings": {
+            "k": config.k,
+            "max_depth": config.max_depth,
+            "modes": task.mode_count(),
+            "horizon_T": dims.horizon,
+            "dim_D": dims.dim(),
+            "gamma": shortest(config.gamma),
+            "alpha": shortest(config.alpha),
+            "beta": shortest(config.beta),
+            "expansions_per_call": config.node_budget,
+        },
+        "calls": calls,
+        "status_of_last_call": format!("{last_status:?}"),
+        "elapsed_s": elapsed,
+        "expansions": total.nodes_expanded,
+        "expansions_per_s": expansions / elapsed,
+        "segments_per_s": f64::from(total.segments_sampled) / elapsed,
+        "nodes_generated": total.nodes_generated,
+        "sampler_calls": total.sampler_calls,
+        "synthetic_sampler_and_scorer_s": workload,
+        "planner_us_per_expansion_excluding_sampler_and_scorer":
+            (elapsed - workload) / expansions * 1e6,
+        "planner": {
+            "type": "PaperPlanner = Planner<K=16, N=512, O=256, S=481>",
+            "size_of_bytes": std::mem::size_of::<PaperPlanner>(),
+        },
+    });
+    println!("{}", serde_json::to_string_pretty(&out)?);
+    Ok(())
+}
+
+/// An `f32` as the `f64` with the same shortest decimal form (0.9, not 0.8999999761581421).
+fn shortest(x: f32) -> f64 {
+    x.to_string().parse().unwrap_or(f64::from(x))
 }

@@ -1,10 +1,12 @@
 //! The `dips` command line (`CONTRACTS.md` §5). Each command group lives in its own module.
 
-use clap::{Parser, Subcommand};
-
 pub mod bench;
 pub mod bench_csvto;
+pub mod bench_sim;
 pub mod episode;
+pub mod sim;
+
+use clap::{Parser, Subcommand};
 
 /// DIPS: diffusion-informed probabilistic contact search for multi-finger manipulation.
 #[derive(Debug, Parser)]
@@ -18,17 +20,20 @@ pub struct Cli {
 /// Top-level commands.
 #[derive(Debug, Subcommand)]
 pub enum Command {
-    /// One closed-loop episode in the quasi-static world; writes DIR/result.json.
-    Episode(episode::EpisodeArgs),
     /// Benchmarks that print JSON figures.
     Bench(bench::BenchArgs),
+    /// Quasi-static test world: run actions, draw scenes and trajectories.
+    Sim(sim::SimArgs),
+    /// One closed-loop episode in the quasi-static world; writes DIR/result.json.
+    Episode(episode::EpisodeArgs),
 }
 
 /// Parse the process arguments and run the command.
 pub fn main() -> anyhow::Result<()> {
     let cli = Cli::parse();
     match cli.command {
-        Command::Episode(args) => episode::run(args),
         Command::Bench(args) => bench::run(args),
+        Command::Sim(args) => sim::main(args),
+        Command::Episode(args) => episode::run(args),
     }
 }

@@ -32,6 +32,10 @@ pub struct ContactReport {
 pub(crate) struct Candidate {
     pub finger: &'static str,
     pub part: &'static str,
+    /// Stable identity across sub-steps: (pushing body, touched body, index within the pair).
+    pub key: (&'static str, &'static str, usize),
+    /// Signed distance at the configuration the candidate was computed at (before any shift).
+    pub phi_at_trial: f64,
     pub point: Point3<f64>,
     pub row: ConeRow,
 }
@@ -88,6 +92,8 @@ pub(crate) struct ContactInputs<'a> {
     pub dofs: ObjectDofs,
     pub table: Option<&'a Body>,
     pub margin: f64,
+    /// Margin for fingertip–table pairs (smaller: the card usually lies in between).
+    pub table_margin: f64,
     pub finger_friction: f64,
     pub finger_table_friction: f64,
     pub table_friction: f64,
@@ -113,6 +119,8 @@ pub(crate) fn candidates(inp: &ContactInputs<'_>) -> Vec<Candidate> {
             out.push(Candidate {
                 finger: inp.finger_names[k],
                 part: c.part,
+                key: (inp.finger_names[k], inp.object.name, 0),
+                phi_at_trial: c.phi,
                 point: c.point_on_body,
                 row: ConeRow {
                     phi: c.phi,
@@ -123,7 +131,8 @@ pub(crate) fn candidates(inp: &ContactInputs<'_>) -> Vec<Candidate> {
             });
         }
         if let Some(table) = inp.table
-            && let Some(c) = table.sphere_contact(&Isometry3::identity(), &center, r, inp.margin)
+            && let Some(c) =
+                table.sphere_contact(&Isometry3::identity(), &center, r, inp.table_margin)
         {
             let mut jac = Matrix3xX::zeros(n);
             let jf = jacobian_from_frames(frames, &c.point_on_sphere);
@@ -131,6 +140,8 @@ pub(crate) fn candidates(inp: &ContactInputs<'_>) -> Vec<Candidate> {
             out.push(Candidate {
                 finger: inp.finger_names[k],
                 part: c.part,
+                key: (inp.finger_names[k], table.name, 0),
+                phi_at_trial: c.phi,
                 point: c.point_on_body,
                 row: ConeRow {
                     phi: c.phi,
@@ -142,7 +153,7 @@ pub(crate) fn candidates(inp: &ContactInputs<'_>) -> Vec<Candidate> {
         }
     }
     if inp.scene == SceneKind::Card && inp.table.is_some() {
-        for p in card_table_vertices(inp.object_pose) {
+        for (index, p) in card_table_vertices(inp.object_pose).into_iter().enumerate() {
             let phi = p.z - card::TABLE_TOP;
             if phi > inp.margin {
                 continue;
@@ -153,6 +164,8 @@ pub(crate) fn candidates(inp: &ContactInputs<'_>) -> Vec<Candidate> {
             out.push(Candidate {
                 finger: "card",
                 part: "table",
+                key: ("card", "table", index),
+                phi_at_trial: phi,
                 point: Point3::new(p.x, p.y, card::TABLE_TOP),
                 row: ConeRow {
                     phi,
@@ -274,10 +287,7 @@ mod tests {
         // A small turn without overhang keeps all four corners (none cut).
         let pose = Isometry3::new(Vector3::new(0.0, 0.05, 0.130), Vector3::new(0.0, 0.0, 0.1));
         assert_eq!(card_table_vertices(&pose).len(), 4);
-        let pose = Isometry3::new(
-            Vector3::new(0.0, -0.06, 0.130),
-            Vector3::new(0.0, 0.0, 0.05),
-        );
+        let pose = Isometry3::new(Vector3::new(0.0, 0.0, 0.130), Vector3::new(0.0, 0.0, 0.05));
         let v = card_table_vertices(&pose);
         assert_eq!(v.len(), 5, "{v:?}");
         assert!(

@@ -8,7 +8,9 @@
 //! Anitescu friction cone. The cone duals are the contact forces. Sub-steps stop early once
 //! `‖δq‖ < early_stop`. See `docs/world.md` for the model and its artifacts.
 
+pub mod bench;
 mod contacts;
+pub mod scripted;
 mod socp;
 
 use clarabel::solver::SolverStatus;
@@ -32,6 +34,10 @@ pub struct WorldParams {
     pub substeps: usize,
     /// Joint stiffness of the task fingers (N·m/rad).
     pub kp: f64,
+    /// Joint damping of the task fingers (N·m·s/rad); Isaac's PD drive uses 1.0. It enters as
+    /// `D/h` on the joint diagonal, so a free finger closes `kp/(kp + D/h)` of its remaining
+    /// error per sub-step: a first-order lag with time constant `D/kp`, as in Isaac.
+    pub joint_damping: f64,
     /// Mass-regularisation scale `s`: the largest object mass entry becomes `kp/s` (qsim's
     /// `unactuated_mass_scale`).
     pub mass_scale: f64,
@@ -51,19 +57,58 @@ pub struct WorldParams {
     pub gravity: f64,
     /// Keep the task joints within their limits with linear constraints.
     pub enforce_joint_limits: bool,
+    /// Clarabel's interior-point iteration limit per solve.
+    pub solver_max_iter: u32,
+    /// How friction is formulated.
+    pub friction_model: FrictionModel,
+    /// Most solves per sub-step for [`FrictionModel::Staggered`].
+    pub staggered_iterations: usize,
+    /// Staggered iterations stop when no normal force changes by more than
+    /// `staggered_tolerance + staggered_relative_tolerance · max normal force` (N).
+    pub staggered_tolerance: f64,
+    /// Relative part of the staggered stopping rule.
+    pub staggered_relative_tolerance: f64,
+    /// Staggered iterations also require the linearised signed distances to match the true
+    /// ones at the solution to within this (m).
+    pub geometry_tolerance: f64,
+}
+
+/// Friction formulation of the contact step.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum FrictionModel {
+    /// One Anitescu cone per contact (spec §1.2, qsim's SOCP). Convex and one solve per
+    /// sub-step, but sliding forces a separation of μ·slip: a finger dragged across a light
+    /// object without pressing drags the object along (measured in `docs/world.md`).
+    Anitescu,
+    /// Non-penetration rows plus maximum-dissipation friction bounded by μ times a normal
+    /// force estimate, re-solved with the new normal forces until they agree (staggered
+    /// projections, warm-started from the previous sub-step), with the contact geometry
+    /// re-linearised at each iterate. No hover; a few solves per sub-step. Converges for
+    /// moderate μ; where it does not, the step is flagged.
+    Staggered,
 }
 
 impl WorldParams {
     /// Defaults for a scene (spec §3 and §4).
     pub fn for_scene(scene: SceneKind) -> WorldParams {
-        let (damping, table) = match scene {
-            SceneKind::Screwdriver => (screwdriver::DAMPING, 0.0),
-            SceneKind::Card => ([card::DAMPING; 3], card::TABLE_FRICTION),
+        // Friction: the card (μ ≤ 1, a 10 g object) needs the hover-free staggered form, or a
+        // grazing finger drags it; the screwdriver (μ = 2.5) uses the single convex Anitescu
+        // cone, because staggered iterations can diverge there (wedging: more friction needs
+        // more normal force). See docs/world.md.
+        let (damping, table, friction_model) = match scene {
+            SceneKind::Screwdriver => (screwdriver::DAMPING, 0.0, FrictionModel::Anitescu),
+            SceneKind::Card => (
+                [card::DAMPING; 3],
+                card::TABLE_FRICTION,
+                FrictionModel::Staggered,
+            ),
         };
         WorldParams {
             action_duration: 1.0,
             substeps: 10,
             kp: scene.kp(),
+            joint_damping: 1.0,
             mass_scale: 5.0,
             contact_margin: 0.02,
             finger_friction: scene.finger_friction(),
@@ -73,6 +118,12 @@ impl WorldParams {
             early_stop: 1e-6,
             gravity: GRAVITY,
             enforce_joint_limits: true,
+            solver_max_iter: 100,
+            friction_model,
+            staggered_iterations: 12,
+            staggered_tolerance: 1e-3,
+            staggered_relative_tolerance: 0.02,
+            geometry_tolerance: 2e-5,
         }
     }
 
@@ -227,6 +278,14 @@ pub enum StepFlag {
     },
     /// The screwdriver's roll or pitch passed its ±1.57 joint limit (not modelled as a stop).
     TiltLimit,
+    /// Staggered friction iterations hit their limit before the normal forces (and the
+    /// re-linearised geometry) settled.
+    FrictionNotConverged {
+        /// Sub-step index within the action.
+        substep: usize,
+        /// Largest remaining normal-force change (N) or signed-distance mismatch (m).
+        change: f64,
+    },
 }
 
 /// What one action did.
@@ -238,8 +297,10 @@ pub struct StepReport {
     pub contacts: Vec<ContactReport>,
     /// Deepest penetration among fingertip/object/table pairs after the action (m, ≥ 0).
     pub max_penetration: f64,
-    /// Interior-point iterations summed over the sub-steps.
+    /// Interior-point iterations summed over all solves.
     pub iterations: u32,
+    /// Clarabel solves (more than one per sub-step with staggered friction).
+    pub solves: u32,
     /// Warnings that did not stop the step.
     pub flags: Vec<StepFlag>,
 }
@@ -277,7 +338,7 @@ pub enum WorldError {
         /// The value.
         value: f64,
     },
-    /// Clarabel did not solve a sub-step; the world keeps the state from before that sub-step.
+    /// Clarabel did not solve a sub-step; the world is left as it was before the action.
     #[error("contact solve failed at sub-step {substep}: Clarabel status {status}")]
     Solver {
         /// Sub-step index within the action.
@@ -302,7 +363,11 @@ pub struct World {
     object_body: Body,
     table: Option<Body>,
     last_contacts: Vec<ContactReport>,
+    /// Normal forces of the last sub-step by contact key (warm start for staggered friction).
+    normal_memory: Vec<(ContactKey, f64)>,
 }
+
+type ContactKey = (&'static str, &'static str, usize);
 
 fn check_finite(what: &'static str, v: &[f64]) -> Result<(), WorldError> {
     match v.iter().position(|x| !x.is_finite()) {
@@ -332,7 +397,7 @@ impl World {
             SceneKind::Screwdriver => (Body::screwdriver(), None),
             SceneKind::Card => (Body::card(), Some(Body::table())),
         };
-        World {
+        let mut world = World {
             scene,
             base: scene.hand_base(),
             hand,
@@ -342,6 +407,50 @@ impl World {
             object_body,
             table,
             last_contacts: Vec::new(),
+            normal_memory: Vec::new(),
+        };
+        world.resolve_penetration();
+        world
+    }
+
+    /// Move penetrating task fingertips out of the object (and table) along the contact normal
+    /// by a few damped least-squares IK steps, leaving the object where it is. Isaac resolves
+    /// the reset's overlaps by running physics; doing it kinematically keeps the object at its
+    /// nominal start. [`World::new`] calls this; call it again after [`World::set_state`] if
+    /// the new state may overlap.
+    pub fn resolve_penetration(&mut self) {
+        let r = self.hand.tip_radius;
+        for f in self.scene.task_fingers() {
+            for _ in 0..20 {
+                let q = self.joints[f.index()];
+                let c = self.hand.tip_center(&self.base, *f, &q);
+                let mut worst: Option<(f64, Vector3<f64>)> = None;
+                let mut consider = |phi: f64, n: Vector3<f64>| {
+                    if phi < 0.0 && worst.is_none_or(|(w, _)| phi < w) {
+                        worst = Some((phi, n));
+                    }
+                };
+                let on_obj = self
+                    .object_body
+                    .sphere_contact(&self.object.pose(), &c, r, 0.0);
+                if let Some(k) = on_obj {
+                    consider(k.phi, k.normal);
+                }
+                if let Some(t) = &self.table
+                    && let Some(k) = t.sphere_contact(&Isometry3::identity(), &c, r, 0.0)
+                {
+                    consider(k.phi, k.normal);
+                }
+                let Some((phi, n)) = worst else { break };
+                if phi > -1e-7 {
+                    break;
+                }
+                let dq = self
+                    .hand
+                    .tip_ik_step(&self.base, *f, &q, &(n * (-phi + 1e-6)), 1e-3);
+                let next: [f64; 4] = std::array::from_fn(|j| q[j] + dq[j]);
+                self.joints[f.index()] = self.hand.clamp_to_limits(*f, &next);
+            }
         }
     }
 
@@ -420,6 +529,7 @@ impl World {
         let a = self.scene.action_dim();
         self.object = ObjectState::from_coords(self.scene, [state[a], state[a + 1], state[a + 2]]);
         self.last_contacts.clear();
+        self.normal_memory.clear();
         Ok(())
     }
 
@@ -433,6 +543,7 @@ impl World {
     /// Set the object's configuration directly.
     pub fn set_object(&mut self, object: ObjectState) {
         self.object = object;
+        self.normal_memory.clear();
     }
 
     /// Task validity of the current state (see [`ObjectState::valid`]).
@@ -523,17 +634,50 @@ impl World {
             contacts: Vec::new(),
             max_penetration: 0.0,
             iterations: 0,
+            solves: 0,
             flags: Vec::new(),
         };
+        let saved = (
+            self.joints,
+            self.object.clone(),
+            self.last_contacts.clone(),
+            self.normal_memory.clone(),
+        );
         for substep in 0..self.params.substeps.max(1) {
-            let (dx, contacts, iters, status) = self.solve_substep(&q_cmd, substep)?;
+            let SubstepResult {
+                dx,
+                contacts,
+                iters,
+                solves,
+                status,
+                unconverged,
+                memory,
+            } = match self.solve_substep(&q_cmd, substep) {
+                Ok(v) => v,
+                Err(e) => {
+                    (
+                        self.joints,
+                        self.object,
+                        self.last_contacts,
+                        self.normal_memory,
+                    ) = saved;
+                    return Err(e);
+                }
+            };
             report.substeps_run += 1;
             report.iterations += iters;
+            report.solves += solves;
             if status == SolverStatus::AlmostSolved {
                 report.flags.push(StepFlag::ReducedAccuracy { substep });
             }
+            if let Some(change) = unconverged {
+                report
+                    .flags
+                    .push(StepFlag::FrictionNotConverged { substep, change });
+            }
             self.apply_increment(&dx);
             self.last_contacts = contacts;
+            self.normal_memory = memory;
             let norm = dx.iter().map(|v| v * v).sum::<f64>().sqrt();
             if norm < self.params.early_stop {
                 break;
@@ -548,17 +692,6 @@ impl World {
             }
         }
         Ok(report)
-    }
-
-    fn task_frames(&self) -> Vec<FingerFrames> {
-        self.scene
-            .task_fingers()
-            .iter()
-            .map(|f| {
-                self.hand
-                    .finger_frames(&self.base, *f, &self.joints[f.index()])
-            })
-            .collect()
     }
 
     /// Object block of P (regularised mass plus damping over h) and the gravity force term.
@@ -618,18 +751,26 @@ impl World {
         }
     }
 
-    #[allow(clippy::type_complexity)]
-    fn solve_substep(
-        &self,
-        q_cmd: &[f64],
-        substep: usize,
-    ) -> Result<(Vec<f64>, Vec<ContactReport>, u32, SolverStatus), WorldError> {
+    /// Contact candidates at a trial configuration (the start of the sub-step plus `guess`),
+    /// with φ shifted so the rows constrain the increment measured from the sub-step start:
+    /// `φ(trial) + nᵀJ (δq − guess) ≥ 0`.
+    fn candidates_at(&self, guess: &[f64]) -> Vec<contacts::Candidate> {
         let fingers = self.scene.task_fingers();
-        let n_a = 4 * fingers.len();
-        let frames = self.task_frames();
+        let mut joints = self.joints;
+        for (k, f) in fingers.iter().enumerate() {
+            for j in 0..4 {
+                joints[f.index()][j] += guess[4 * k + j];
+            }
+        }
+        let mut object = self.object.clone();
+        object.apply(&guess[4 * fingers.len()..]);
+        let frames: Vec<FingerFrames> = fingers
+            .iter()
+            .map(|f| self.hand.finger_frames(&self.base, *f, &joints[f.index()]))
+            .collect();
         let names: Vec<&'static str> = fingers.iter().map(|f| f.name()).collect();
-        let pose = self.object.pose();
-        let dofs = match self.object {
+        let pose = object.pose();
+        let dofs = match object {
             ObjectState::Screwdriver { .. } => contacts::ObjectDofs::Pivot {
                 pivot: screwdriver::pivot(),
             },
@@ -637,7 +778,7 @@ impl World {
                 origin: Point3::from(pose.translation.vector),
             },
         };
-        let cands = contacts::candidates(&contacts::ContactInputs {
+        let mut cands = contacts::candidates(&contacts::ContactInputs {
             scene: self.scene,
             hand: &self.hand,
             frames: &frames,
@@ -647,21 +788,38 @@ impl World {
             dofs,
             table: self.table.as_ref(),
             margin: self.params.contact_margin,
+            table_margin: 0.25 * self.params.contact_margin,
             finger_friction: self.params.finger_friction,
             finger_table_friction: self.params.finger_table_friction,
             table_friction: self.params.table_friction,
         });
-        let n = n_a + dofs.count();
+        if guess.iter().any(|g| *g != 0.0) {
+            let g = nalgebra::DVector::from_column_slice(guess);
+            for cand in &mut cands {
+                let moved = (cand.row.normal.transpose() * (&cand.row.jac * &g))[0];
+                cand.row.phi -= moved;
+            }
+        }
+        cands
+    }
+
+    fn solve_substep(&self, q_cmd: &[f64], substep: usize) -> Result<SubstepResult, WorldError> {
+        let fingers = self.scene.task_fingers();
+        let n_a = 4 * fingers.len();
+        let n_u = match self.object {
+            ObjectState::Screwdriver { .. } => 3,
+            ObjectState::Card { .. } => 6,
+        };
+        let n = n_a + n_u;
         let (block, force_u) = self.object_block();
         let mut p = DMatrix::zeros(n, n);
         let mut c = vec![0.0; n];
         let q_now = self.task_joints();
         for i in 0..n_a {
-            p[(i, i)] = self.params.kp;
+            p[(i, i)] = self.params.kp + self.params.joint_damping / self.params.h();
             c[i] = -self.params.kp * (q_cmd[i] - q_now[i]);
         }
-        p.view_mut((n_a, n_a), (dofs.count(), dofs.count()))
-            .copy_from(&block);
+        p.view_mut((n_a, n_a), (n_u, n_u)).copy_from(&block);
         for (i, f) in force_u.iter().enumerate() {
             c[n_a + i] = -f;
         }
@@ -679,29 +837,149 @@ impl World {
         } else {
             Vec::new()
         };
-        let rows: Vec<socp::ConeRow> = cands.iter().map(|c| c.row.clone()).collect();
-        let sol = socp::solve(&socp::Program {
-            p: &p,
-            c: &c,
-            cones: &rows,
-            bounds: &bounds,
-        })
-        .map_err(WorldError::Setup)?;
-        match sol.status {
-            SolverStatus::Solved | SolverStatus::AlmostSolved => {}
-            other => {
+        let check = |sol: &socp::Solution| -> Result<(), WorldError> {
+            match sol.status {
+                SolverStatus::Solved | SolverStatus::AlmostSolved => {}
+                other => {
+                    return Err(WorldError::Solver {
+                        substep,
+                        status: format!("{other:?}"),
+                    });
+                }
+            }
+            if sol
+                .x
+                .iter()
+                .chain(sol.normal_forces.iter())
+                .any(|v| !v.is_finite())
+            {
                 return Err(WorldError::Solver {
                     substep,
-                    status: format!("{other:?}"),
+                    status: "non-finite solution".into(),
                 });
             }
-        }
-        if sol.x.iter().any(|v| !v.is_finite()) {
-            return Err(WorldError::Solver {
-                substep,
-                status: "non-finite solution".into(),
-            });
-        }
+            Ok(())
+        };
+        let mut iters = 0;
+        let mut solves = 0;
+        let mut unconverged = None;
+        let mut worst_status = SolverStatus::Solved;
+        let (sol, cands) = match self.params.friction_model {
+            FrictionModel::Anitescu => {
+                let cands = self.candidates_at(&vec![0.0; n]);
+                let rows: Vec<socp::ConeRow> = cands.iter().map(|c| c.row.clone()).collect();
+                let prog = socp::Program {
+                    p: &p,
+                    c: &c,
+                    cones: &rows,
+                    bounds: &bounds,
+                    max_iter: self.params.solver_max_iter,
+                    friction: socp::FrictionForm::Anitescu,
+                };
+                let sol = socp::solve(&prog).map_err(WorldError::Setup)?;
+                check(&sol)?;
+                iters += sol.iterations;
+                solves += 1;
+                worst_status = sol.status;
+                (sol, cands)
+            }
+            FrictionModel::Staggered => {
+                // Two coupled fixed points, iterated together:
+                // - the contact geometry is re-linearised at the latest predicted configuration
+                //   (sequential convex programming on φ(q + δq) ≥ 0), and
+                // - the friction bounds μN use the latest normal forces N (staggered
+                //   projections), relaxed with Aitken's dynamic factor: the plain iteration
+                //   alternates (ratio ≈ −0.5) on the card and creeps (≈ +0.3) on the screwdriver.
+                let mut cands = self.candidates_at(&vec![0.0; n]);
+                let mut known: Vec<(ContactKey, f64)> = self.normal_memory.clone();
+                let mut omega: f64 = 1.0;
+                let mut prev: Option<(Vec<ContactKey>, Vec<f64>)> = None;
+                let mut last = None;
+                for _ in 0..self.params.staggered_iterations.max(1) {
+                    let keys: Vec<ContactKey> = cands.iter().map(|c| c.key).collect();
+                    let normals: Vec<f64> = keys
+                        .iter()
+                        .map(|key| {
+                            known
+                                .iter()
+                                .find(|(k, _)| k == key)
+                                .map_or(0.0, |(_, f)| *f)
+                        })
+                        .collect();
+                    let rows: Vec<socp::ConeRow> = cands.iter().map(|c| c.row.clone()).collect();
+                    let prog = socp::Program {
+                        p: &p,
+                        c: &c,
+                        cones: &rows,
+                        bounds: &bounds,
+                        max_iter: self.params.solver_max_iter,
+                        friction: socp::FrictionForm::Lagged(&normals),
+                    };
+                    let sol = socp::solve(&prog).map_err(WorldError::Setup)?;
+                    check(&sol)?;
+                    iters += sol.iterations;
+                    solves += 1;
+                    if sol.status == SolverStatus::AlmostSolved {
+                        worst_status = SolverStatus::AlmostSolved;
+                    }
+                    let residual: Vec<f64> = sol
+                        .normal_forces
+                        .iter()
+                        .zip(&normals)
+                        .map(|(g, n)| g.max(0.0) - n)
+                        .collect();
+                    let change = residual.iter().fold(0.0, |m: f64, r| m.max(r.abs()));
+                    let largest = sol.normal_forces.iter().copied().fold(0.0, f64::max);
+                    let tol = self.params.staggered_tolerance
+                        + self.params.staggered_relative_tolerance * largest;
+                    // Geometry: does the linearisation predict the true signed distances at the
+                    // solution? (New penetrating contacts count as errors.)
+                    let next = self.candidates_at(&sol.x);
+                    let xv = nalgebra::DVector::from_column_slice(&sol.x);
+                    let mut geom: f64 = 0.0;
+                    for nc in &next {
+                        match cands.iter().find(|c| c.key == nc.key) {
+                            Some(c) => {
+                                let predicted =
+                                    c.row.phi + (c.row.normal.transpose() * (&c.row.jac * &xv))[0];
+                                geom = geom.max((nc.phi_at_trial - predicted).abs());
+                            }
+                            None => geom = geom.max(-nc.phi_at_trial),
+                        }
+                    }
+                    let converged = change <= tol && geom <= self.params.geometry_tolerance;
+                    unconverged = (!converged).then_some(change.max(geom));
+                    last = Some((sol, std::mem::replace(&mut cands, next)));
+                    if converged {
+                        break;
+                    }
+                    match &prev {
+                        Some((prev_keys, prev_res)) if *prev_keys == keys => {
+                            let dr: Vec<f64> =
+                                residual.iter().zip(prev_res).map(|(a, b)| a - b).collect();
+                            let denom: f64 = dr.iter().map(|d| d * d).sum();
+                            if denom > 0.0 {
+                                let num: f64 = prev_res.iter().zip(&dr).map(|(a, b)| a * b).sum();
+                                omega = (-omega * num / denom).clamp(0.4, 1.5);
+                            }
+                        }
+                        _ => omega = 1.0,
+                    }
+                    known = keys
+                        .iter()
+                        .zip(normals.iter().zip(&residual))
+                        .map(|(k, (n, r))| (*k, (n + omega * r).max(0.0)))
+                        .collect();
+                    prev = Some((keys, residual));
+                }
+                last.ok_or_else(|| WorldError::Setup("no staggered iteration ran".into()))?
+            }
+        };
+        let memory = cands
+            .iter()
+            .zip(&sol.normal_forces)
+            .map(|(cand, f)| (cand.key, f.max(0.0)))
+            .collect();
         let reports = cands
             .iter()
             .zip(&sol.forces_on_a)
@@ -718,7 +996,15 @@ impl World {
                 }
             })
             .collect();
-        Ok((sol.x, reports, sol.iterations, sol.status))
+        Ok(SubstepResult {
+            dx: sol.x,
+            contacts: reports,
+            iters,
+            solves,
+            status: worst_status,
+            unconverged,
+            memory,
+        })
     }
 
     fn apply_increment(&mut self, dx: &[f64]) {
@@ -730,6 +1016,54 @@ impl World {
         }
         self.object.apply(&dx[4 * fingers.len()..]);
     }
+}
+
+/// The force columns of a `CONTRACTS.md` §2 action row from a step's contacts: for each task
+/// finger the force it exerts on the object (world frame, N; zero when not touching), then for
+/// the card the environment force `f_env`, the force of the table on the card. 9 numbers in
+/// both scenes.
+pub fn force_columns(scene: SceneKind, contacts: &[ContactReport]) -> Vec<f64> {
+    let object_parts: &[&str] = match scene {
+        SceneKind::Screwdriver => &["shaft", "handle", "cap"],
+        SceneKind::Card => &["card"],
+    };
+    let mut out = Vec::with_capacity(9);
+    for f in scene.task_fingers() {
+        let mut sum = [0.0; 3];
+        for c in contacts
+            .iter()
+            .filter(|c| c.finger == f.name() && object_parts.contains(&c.part.as_str()))
+        {
+            for (s, f) in sum.iter_mut().zip(c.force) {
+                *s += f;
+            }
+        }
+        out.extend(sum);
+    }
+    if scene == SceneKind::Card {
+        let mut env = [0.0; 3];
+        for c in contacts
+            .iter()
+            .filter(|c| c.finger == "card" && c.part == "table")
+        {
+            for (e, f) in env.iter_mut().zip(c.force) {
+                *e -= f;
+            }
+        }
+        out.extend(env);
+    }
+    out
+}
+
+/// What one sub-step produced.
+struct SubstepResult {
+    dx: Vec<f64>,
+    contacts: Vec<ContactReport>,
+    iters: u32,
+    solves: u32,
+    status: SolverStatus,
+    unconverged: Option<f64>,
+    memory: Vec<(ContactKey, f64)>,
 }
 
 /// qsim's mass scaling: `ε` such that the largest mass entry becomes `kp / s` (spec §1.1).
@@ -754,6 +1088,37 @@ mod tests {
             o.apply(&[0.0, 0.0, -0.2]);
         }
         assert!((o.coords()[2] + 8.0).abs() < 1e-9, "{:?}", o.coords());
+    }
+
+    #[test]
+    fn force_columns_follow_the_contract() {
+        let c = |finger: &str, part: &str, force: [f64; 3]| ContactReport {
+            finger: finger.into(),
+            part: part.into(),
+            point: [0.0; 3],
+            normal: [0.0, 0.0, 1.0],
+            force,
+            phi: 0.0,
+        };
+        let contacts = vec![
+            c("index", "card", [0.0, -1.0, -2.0]),
+            c("index", "table", [5.0, 5.0, 5.0]),
+            c("card", "table", [0.0, 0.5, -1.0]),
+            c("card", "table", [0.0, 0.5, -1.1]),
+        ];
+        let cols = force_columns(SceneKind::Card, &contacts);
+        assert_eq!(cols.len(), 9);
+        assert_eq!(&cols[..3], &[0.0, -1.0, -2.0]);
+        assert_eq!(&cols[3..6], &[0.0; 3]);
+        assert!((cols[7] + 1.0).abs() < 1e-12 && (cols[8] - 2.1).abs() < 1e-12);
+        let sd = vec![
+            c("thumb", "handle", [1.0, 0.0, 0.0]),
+            c("thumb", "cap", [0.0, 1.0, 0.0]),
+        ];
+        assert_eq!(
+            force_columns(SceneKind::Screwdriver, &sd)[6..],
+            [1.0, 1.0, 0.0]
+        );
     }
 
     #[test]

@@ -26,6 +26,17 @@ pub(crate) struct ConeRow {
     pub jac: Matrix3xX<f64>,
 }
 
+/// How friction enters the program.
+#[derive(Debug, Clone, Copy)]
+pub(crate) enum FrictionForm<'a> {
+    /// One Anitescu cone per contact: `[φ/μ + nᵀJx/μ ; TᵀJx] ∈ SOC₃`.
+    Anitescu,
+    /// Non-penetration `φ + nᵀJx ≥ 0` per contact plus maximum dissipation with a fixed
+    /// normal force: objective `+ μ N̂ τ` with `(τ, TᵀJx) ∈ SOC₃` (one cone per contact whose
+    /// `μ N̂` is positive). `N̂` is given per contact.
+    Lagged(&'a [f64]),
+}
+
 /// The program's data.
 #[derive(Debug)]
 pub(crate) struct Program<'a> {
@@ -37,15 +48,21 @@ pub(crate) struct Program<'a> {
     pub cones: &'a [ConeRow],
     /// `(lower, upper)` bounds on the first `bounds.len()` variables.
     pub bounds: &'a [(f64, f64)],
+    /// Interior-point iteration limit.
+    pub max_iter: u32,
+    /// Friction formulation.
+    pub friction: FrictionForm<'a>,
 }
 
 /// Solution of one program.
 #[derive(Debug, Clone)]
 pub(crate) struct Solution {
-    /// Primal increments.
+    /// Primal increments (without any friction epigraph variables).
     pub x: Vec<f64>,
     /// Force on body A of each contact (world frame, N).
     pub forces_on_a: Vec<Vector3<f64>>,
+    /// Normal force magnitude of each contact (N).
+    pub normal_forces: Vec<f64>,
     /// Solver status.
     pub status: SolverStatus,
     /// Interior-point iterations.
@@ -85,71 +102,150 @@ fn to_csc(m: &DMatrix<f64>, upper: bool) -> CscMatrix<f64> {
     CscMatrix::new(rows, cols, colptr, rowval, nzval)
 }
 
+/// Below this `μ N̂` (N) a lagged contact gets no friction cone.
+const MIN_FRICTION_BOUND: f64 = 1e-9;
+
 /// Build and solve the program. Errors only for malformed data (a defect); solver statuses
 /// other than `Solved` are returned in [`Solution::status`] for the caller to judge.
 pub(crate) fn solve(prog: &Program<'_>) -> Result<Solution, String> {
     let n = prog.c.len();
-    let m_cone = 3 * prog.cones.len();
-    let m = m_cone + 2 * prog.bounds.len();
-    let mut a = DMatrix::<f64>::zeros(m.max(1), n);
-    let mut b = vec![0.0; m.max(1)];
-    let mut cone_spec: Vec<SupportedConeT<f64>> = Vec::with_capacity(prog.cones.len() + 1);
-    let mut tangent_frames = Vec::with_capacity(prog.cones.len());
-    for (k, cone) in prog.cones.iter().enumerate() {
-        let (t1, t2) = tangents(&cone.normal);
-        let r = 3 * k;
-        let jn = cone.normal.transpose() * &cone.jac / cone.mu;
-        let j1 = t1.transpose() * &cone.jac;
-        let j2 = t2.transpose() * &cone.jac;
-        for col in 0..n {
-            a[(r, col)] = -jn[col];
-            a[(r + 1, col)] = -j1[col];
-            a[(r + 2, col)] = -j2[col];
+    let k = prog.cones.len();
+    let frames: Vec<(Vector3<f64>, Vector3<f64>)> =
+        prog.cones.iter().map(|c| tangents(&c.normal)).collect();
+    // Friction epigraph variables (lagged form): one per contact with a positive bound.
+    let lagged_slot: Vec<Option<usize>> = match prog.friction {
+        FrictionForm::Anitescu => vec![None; k],
+        FrictionForm::Lagged(normals) => {
+            let mut next = 0;
+            prog.cones
+                .iter()
+                .zip(normals)
+                .map(|(c, nf)| {
+                    (c.mu * nf > MIN_FRICTION_BOUND).then(|| {
+                        next += 1;
+                        next - 1
+                    })
+                })
+                .collect()
         }
-        b[r] = cone.phi / cone.mu;
-        cone_spec.push(SupportedConeT::SecondOrderConeT(3));
-        tangent_frames.push((t1, t2));
+    };
+    let n_tau = lagged_slot.iter().flatten().count();
+    let nv = n + n_tau;
+    let n_normal_rows = match prog.friction {
+        FrictionForm::Anitescu => 0,
+        FrictionForm::Lagged(_) => k,
+    };
+    let n_soc = match prog.friction {
+        FrictionForm::Anitescu => k,
+        FrictionForm::Lagged(_) => n_tau,
+    };
+    let m_bounds = 2 * prog.bounds.len();
+    let m = n_normal_rows + 3 * n_soc + m_bounds;
+    let rows_total = m.max(1);
+    let mut a = DMatrix::<f64>::zeros(rows_total, nv);
+    let mut b = vec![0.0; rows_total];
+    let mut cone_spec: Vec<SupportedConeT<f64>> = Vec::with_capacity(n_soc + 3);
+    let mut c_full = prog.c.to_vec();
+    c_full.resize(nv, 0.0);
+    match prog.friction {
+        FrictionForm::Anitescu => {
+            for (i, (cone, (t1, t2))) in prog.cones.iter().zip(&frames).enumerate() {
+                let r = 3 * i;
+                let jn = cone.normal.transpose() * &cone.jac / cone.mu;
+                let j1 = t1.transpose() * &cone.jac;
+                let j2 = t2.transpose() * &cone.jac;
+                for col in 0..n {
+                    a[(r, col)] = -jn[col];
+                    a[(r + 1, col)] = -j1[col];
+                    a[(r + 2, col)] = -j2[col];
+                }
+                b[r] = cone.phi / cone.mu;
+                cone_spec.push(SupportedConeT::SecondOrderConeT(3));
+            }
+        }
+        FrictionForm::Lagged(normals) => {
+            for (i, cone) in prog.cones.iter().enumerate() {
+                let jn = cone.normal.transpose() * &cone.jac;
+                for col in 0..n {
+                    a[(i, col)] = -jn[col];
+                }
+                b[i] = cone.phi;
+            }
+            if k > 0 {
+                cone_spec.push(SupportedConeT::NonnegativeConeT(k));
+            }
+            for (i, (cone, (t1, t2))) in prog.cones.iter().zip(&frames).enumerate() {
+                let Some(slot) = lagged_slot[i] else { continue };
+                let r = k + 3 * slot;
+                let tau = n + slot;
+                a[(r, tau)] = -1.0;
+                let j1 = t1.transpose() * &cone.jac;
+                let j2 = t2.transpose() * &cone.jac;
+                for col in 0..n {
+                    a[(r + 1, col)] = -j1[col];
+                    a[(r + 2, col)] = -j2[col];
+                }
+                c_full[tau] = cone.mu * normals[i];
+                cone_spec.push(SupportedConeT::SecondOrderConeT(3));
+            }
+        }
     }
+    let r0 = n_normal_rows + 3 * n_soc;
     if !prog.bounds.is_empty() {
         for (i, &(lo, hi)) in prog.bounds.iter().enumerate() {
             // x_i ≤ hi  →  s = hi − x_i ≥ 0;   −x_i ≤ −lo  →  s = x_i − lo ≥ 0.
-            a[(m_cone + 2 * i, i)] = 1.0;
-            b[m_cone + 2 * i] = hi;
-            a[(m_cone + 2 * i + 1, i)] = -1.0;
-            b[m_cone + 2 * i + 1] = -lo;
+            a[(r0 + 2 * i, i)] = 1.0;
+            b[r0 + 2 * i] = hi;
+            a[(r0 + 2 * i + 1, i)] = -1.0;
+            b[r0 + 2 * i + 1] = -lo;
         }
-        cone_spec.push(SupportedConeT::NonnegativeConeT(2 * prog.bounds.len()));
+        cone_spec.push(SupportedConeT::NonnegativeConeT(m_bounds));
     }
     if m == 0 {
         // A single trivially satisfied row keeps Clarabel's dimensions non-empty.
         b[0] = 1.0;
         cone_spec.push(SupportedConeT::NonnegativeConeT(1));
     }
-    let p = to_csc(prog.p, true);
+    let mut p_full = DMatrix::zeros(nv, nv);
+    p_full.view_mut((0, 0), (n, n)).copy_from(prog.p);
+    let p = to_csc(&p_full, true);
     let a = to_csc(&a, false);
     let settings = DefaultSettingsBuilder::default()
         .verbose(false)
         .presolve_enable(false)
-        .max_iter(100)
+        .max_iter(prog.max_iter)
         .build()
         .map_err(|e| format!("settings: {e:?}"))?;
-    let mut solver = DefaultSolver::new(&p, prog.c, &a, &b, &cone_spec, settings)
+    let mut solver = DefaultSolver::new(&p, &c_full, &a, &b, &cone_spec, settings)
         .map_err(|e| format!("setup: {e:?}"))?;
     solver.solve();
     let sol = &solver.solution;
-    let forces_on_a = prog
-        .cones
-        .iter()
-        .zip(&tangent_frames)
-        .enumerate()
-        .map(|(k, (cone, (t1, t2)))| {
-            let z = &sol.z[3 * k..3 * k + 3];
-            cone.normal * (z[0] / cone.mu) + t1 * z[1] + t2 * z[2]
-        })
-        .collect();
+    let mut forces_on_a = Vec::with_capacity(k);
+    let mut normal_forces = Vec::with_capacity(k);
+    for (i, (cone, (t1, t2))) in prog.cones.iter().zip(&frames).enumerate() {
+        match prog.friction {
+            FrictionForm::Anitescu => {
+                let z = &sol.z[3 * i..3 * i + 3];
+                let fn_ = z[0] / cone.mu;
+                normal_forces.push(fn_);
+                forces_on_a.push(cone.normal * fn_ + t1 * z[1] + t2 * z[2]);
+            }
+            FrictionForm::Lagged(_) => {
+                let fn_ = sol.z[i];
+                let mut f = cone.normal * fn_;
+                if let Some(slot) = lagged_slot[i] {
+                    let z = &sol.z[k + 3 * slot..k + 3 * slot + 3];
+                    f += t1 * z[1] + t2 * z[2];
+                }
+                normal_forces.push(fn_);
+                forces_on_a.push(f);
+            }
+        }
+    }
     Ok(Solution {
-        x: sol.x.clone(),
+        x: sol.x[..n].to_vec(),
         forces_on_a,
+        normal_forces,
         status: sol.status,
         iterations: sol.iterations,
     })
@@ -180,6 +276,8 @@ mod tests {
             c: &c,
             cones: &[cone],
             bounds: &[],
+            max_iter: 100,
+            friction: FrictionForm::Anitescu,
         })
         .unwrap();
         assert_eq!(sol.status, SolverStatus::Solved);
@@ -204,12 +302,60 @@ mod tests {
             c: &c,
             cones: &[cone],
             bounds: &[],
+            max_iter: 100,
+            friction: FrictionForm::Anitescu,
         })
         .unwrap();
         assert!(sol.x[0] > 1e-3, "{:?}", sol.x);
         assert!((sol.x[2] - 0.5 * sol.x[0]).abs() < 1e-6, "{:?}", sol.x);
         let f = sol.forces_on_a[0];
         assert!((f.xy().norm() - 0.5 * f.z).abs() < 1e-5, "{f:?}");
+    }
+
+    /// Lagged form: no lift when sliding, friction bounded by μ N̂ and opposing the slip.
+    #[test]
+    fn lagged_friction_slides_without_lift() {
+        let k = 100.0;
+        let p = DMatrix::identity(3, 3) * k;
+        let c = [-k * 0.01, 0.0, k * 0.01];
+        let mut jac = Matrix3xX::zeros(3);
+        jac.fill_with_identity();
+        let cone = ConeRow {
+            phi: 0.0,
+            mu: 0.5,
+            normal: Vector3::z(),
+            jac,
+        };
+        let normals = [1.0];
+        let prog = Program {
+            p: &p,
+            c: &c,
+            cones: std::slice::from_ref(&cone),
+            bounds: &[],
+            max_iter: 100,
+            friction: FrictionForm::Lagged(&normals),
+        };
+        let sol = solve(&prog).unwrap();
+        assert_eq!(sol.status, SolverStatus::Solved);
+        // Spring pulls 1 N tangentially, friction holds 0.5 N: slides by 0.5 N / k, no lift.
+        assert!(
+            (sol.x[0] - 0.005).abs() < 1e-6 && sol.x[2].abs() < 1e-7,
+            "{:?}",
+            sol.x
+        );
+        let f = sol.forces_on_a[0];
+        assert!(
+            (f.x + 0.5).abs() < 1e-5 && (f.z - 1.0).abs() < 1e-5,
+            "{f:?}"
+        );
+        // With N̂ = 0 there is no friction at all.
+        let zero = [0.0];
+        let prog = Program {
+            friction: FrictionForm::Lagged(&zero),
+            ..prog
+        };
+        let sol = solve(&prog).unwrap();
+        assert!((sol.x[0] - 0.01).abs() < 1e-6, "{:?}", sol.x);
     }
 
     #[test]
@@ -221,6 +367,8 @@ mod tests {
             c: &c,
             cones: &[],
             bounds: &[(-0.5, 0.5), (-0.2, 0.2)],
+            max_iter: 100,
+            friction: FrictionForm::Anitescu,
         })
         .unwrap();
         assert_eq!(sol.status, SolverStatus::Solved);

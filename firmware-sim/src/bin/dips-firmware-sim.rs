@@ -1,0 +1,114 @@
+//! `dips-firmware-sim`: serve the DIPS wire protocol on stdin/stdout or over TCP.
+//!
+//! Usage: `dips-firmware-sim [--listen ADDR] [--model-capacity-bytes N]`.
+//! The two model buffers are static (`MODEL_CAPACITY_BYTES` each, zero-initialised memory
+//! that costs nothing until written); `--model-capacity-bytes` uses only a prefix of them.
+//! Nothing is allocated while serving. With `--listen`, connections are served one after
+//! another (each is a new session; loaded models persist) and the bound address is printed
+//! to stderr as `listening on ADDR`. Statistics go to stderr.
+
+use std::net::TcpListener;
+use std::process::ExitCode;
+use std::sync::Mutex;
+
+use dips_firmware_sim::{Firmware, MODEL_CAPACITY_BYTES, ServeStats, serve};
+
+static DENOISER: Mutex<[u8; MODEL_CAPACITY_BYTES]> = Mutex::new([0; MODEL_CAPACITY_BYTES]);
+static DISCRIMINATOR: Mutex<[u8; MODEL_CAPACITY_BYTES]> = Mutex::new([0; MODEL_CAPACITY_BYTES]);
+
+const USAGE: &str = "usage: dips-firmware-sim [--listen ADDR] [--model-capacity-bytes N]";
+
+struct Args {
+    listen: Option<String>,
+    capacity: usize,
+}
+
+fn parse_args() -> Result<Args, String> {
+    let mut parsed = Args {
+        listen: None,
+        capacity: MODEL_CAPACITY_BYTES,
+    };
+    let mut args = std::env::args().skip(1);
+    while let Some(arg) = args.next() {
+        let mut value = |name: &str| args.next().ok_or(format!("{name} needs a value"));
+        match arg.as_str() {
+            "--listen" => parsed.listen = Some(value("--listen")?),
+            "--model-capacity-bytes" => {
+                let v = value("--model-capacity-bytes")?;
+                parsed.capacity = v
+                    .parse()
+                    .map_err(|e| format!("--model-capacity-bytes {v:?}: {e}"))?;
+                if parsed.capacity > MODEL_CAPACITY_BYTES {
+                    return Err(format!(
+                        "--model-capacity-bytes {v} exceeds the static {MODEL_CAPACITY_BYTES}"
+                    ));
+                }
+            }
+            "-h" | "--help" => return Err(USAGE.into()),
+            other => return Err(format!("unknown argument {other:?}; {USAGE}")),
+        }
+    }
+    Ok(parsed)
+}
+
+fn report(stats: &ServeStats) {
+    eprintln!(
+        "dips-firmware-sim: {} requests, {} bad frames, {} replies",
+        stats.requests, stats.bad_frames, stats.replies
+    );
+}
+
+fn run(args: &Args) -> Result<(), String> {
+    let mut denoiser = DENOISER.lock().map_err(|_| "model buffer poisoned")?;
+    let mut discriminator = DISCRIMINATOR.lock().map_err(|_| "model buffer poisoned")?;
+    let mut firmware = Firmware::new(
+        &mut denoiser[..args.capacity],
+        &mut discriminator[..args.capacity],
+    );
+    let Some(addr) = &args.listen else {
+        let stats = serve(
+            &mut firmware,
+            std::io::stdin().lock(),
+            std::io::stdout().lock(),
+        )
+        .map_err(|e| format!("stdio: {e}"))?;
+        report(&stats);
+        return Ok(());
+    };
+    let listener = TcpListener::bind(addr).map_err(|e| format!("bind {addr}: {e}"))?;
+    let local = listener.local_addr().map_err(|e| format!("{addr}: {e}"))?;
+    eprintln!("listening on {local}");
+    for stream in listener.incoming() {
+        let stream = match stream {
+            Ok(s) => s,
+            Err(e) => {
+                eprintln!("dips-firmware-sim: accept: {e}");
+                continue;
+            }
+        };
+        let reader = stream.try_clone().map_err(|e| format!("socket: {e}"))?;
+        firmware.reset_session();
+        match serve(&mut firmware, reader, stream) {
+            Ok(stats) => report(&stats),
+            Err(e) => eprintln!("dips-firmware-sim: connection: {e}"),
+        }
+    }
+    Ok(())
+}
+
+fn main() -> ExitCode {
+    let args = match parse_args() {
+        Ok(a) => a,
+        Err(msg) => {
+            eprintln!("{msg}");
+            return ExitCode::from(2);
+        }
+    };
+    match run(&args) {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(msg) => {
+            eprintln!("dips-firmware-sim: {msg}");
+            ExitCode::FAILURE
+        }
+    }
+}

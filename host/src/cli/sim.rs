@@ -1,0 +1,406 @@
+//! `dips sim`: run actions in the quasi-static world and draw scenes or trajectories.
+//!
+//! `dips sim run --scene screwdriver|card --commands CMDS.json --out OUT.json` executes one
+//! 1 s action per row of CMDS (`{"dq": [[...], ...]}`: joint deltas of the task fingers in
+//! `CONTRACTS.md` §2 order, relative to the current measured joints) and writes
+//! `{"scene", "states", "valid", "contacts", "max_penetration", "flags", "metric"}` with one state row per
+//! action plus the initial state first. `contacts[k]` are the contacts at the end of action k
+//! (`contacts[0]` is empty): finger, part, point, normal (out of the part), force (exerted by
+//! the finger on the part, N) and signed distance.
+//!
+//! `dips sim render --scene S [--trajectory OUT.json] [--step K] --out FILE.svg|FILE.png`
+//! draws the scene's initial state, or state K (default: last) of a trajectory with its
+//! contacts and forces.
+
+use std::path::{Path, PathBuf};
+
+use clap::{Args, Subcommand};
+use serde::{Deserialize, Serialize};
+
+use crate::hand::Recorder;
+use crate::kinematics::HandModel;
+use crate::render;
+use crate::scenes::SceneKind;
+use crate::world::{ContactReport, StepFlag, World, WorldError, WorldParams};
+
+/// `dips sim` arguments.
+#[derive(Debug, Args)]
+pub struct SimArgs {
+    /// What to do.
+    #[command(subcommand)]
+    pub command: SimCommand,
+}
+
+/// `dips sim` subcommands.
+#[derive(Debug, Subcommand)]
+pub enum SimCommand {
+    /// Execute actions from a commands file and write the trajectory.
+    Run(RunArgs),
+    /// Draw a scene or one state of a trajectory to SVG or PNG.
+    Render(RenderArgs),
+}
+
+/// `dips sim run` arguments.
+#[derive(Debug, Args)]
+pub struct RunArgs {
+    /// Scene: `screwdriver` or `card`.
+    #[arg(long)]
+    pub scene: String,
+    /// Commands file: `{"dq": [[...], ...]}`, one row per 1 s action.
+    #[arg(long)]
+    pub commands: PathBuf,
+    /// Output trajectory (JSON).
+    #[arg(long)]
+    pub out: PathBuf,
+    /// Optional hand description (default: the built-in Allegro v4 file).
+    #[arg(long)]
+    pub hand: Option<PathBuf>,
+    /// Optional hand log (JSON lines) of every step, replayable with the `hand` module.
+    #[arg(long)]
+    pub log: Option<PathBuf>,
+}
+
+/// `dips sim render` arguments.
+#[derive(Debug, Args)]
+pub struct RenderArgs {
+    /// Scene: `screwdriver` or `card`.
+    #[arg(long)]
+    pub scene: String,
+    /// Trajectory written by `dips sim run` (default: draw the initial state).
+    #[arg(long)]
+    pub trajectory: Option<PathBuf>,
+    /// Which state row of the trajectory (default: the last).
+    #[arg(long)]
+    pub step: Option<usize>,
+    /// Output file, `.svg` or `.png`.
+    #[arg(long)]
+    pub out: PathBuf,
+    /// Pixels per view (three views side by side).
+    #[arg(long, default_value_t = 400)]
+    pub size: u32,
+}
+
+/// Errors of `dips sim`.
+#[derive(Debug, thiserror::Error)]
+pub enum SimCliError {
+    /// Unknown scene name.
+    #[error("unknown scene {0:?} (expected screwdriver or card)")]
+    Scene(String),
+    /// A file could not be read or written.
+    #[error("{path}: {source}")]
+    Io {
+        /// The file.
+        path: String,
+        /// The underlying error.
+        source: std::io::Error,
+    },
+    /// A file is not valid JSON of the expected shape.
+    #[error("{path} is not valid JSON of the expected shape: {message}")]
+    Json {
+        /// The file.
+        path: String,
+        /// Parser message.
+        message: String,
+    },
+    /// A command row has the wrong length.
+    #[error("{path}: dq row {row} has {got} numbers, the {scene} task needs {expected}")]
+    RowLength {
+        /// The file.
+        path: String,
+        /// 0-based row.
+        row: usize,
+        /// Scene name.
+        scene: &'static str,
+        /// Expected length.
+        expected: usize,
+        /// Given length.
+        got: usize,
+    },
+    /// A command entry is NaN or infinite (JSON has no NaN, but a huge literal overflows).
+    #[error("{path}: dq row {row} entry {col} is not finite")]
+    NonFinite {
+        /// The file.
+        path: String,
+        /// 0-based row.
+        row: usize,
+        /// 0-based column.
+        col: usize,
+    },
+    /// A trajectory row index is out of range.
+    #[error("{path} has {len} states; --step {step} is out of range")]
+    Step {
+        /// The file.
+        path: String,
+        /// Requested row.
+        step: usize,
+        /// Rows present.
+        len: usize,
+    },
+    /// The world failed an action (partial trajectory written).
+    #[error("action {action} failed: {source} (the trajectory up to it was written)")]
+    Action {
+        /// 0-based action.
+        action: usize,
+        /// The world's error.
+        source: WorldError,
+    },
+    /// Any other error from a library module.
+    #[error(transparent)]
+    Other(#[from] anyhow::Error),
+}
+
+/// The commands file.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Commands {
+    /// One row of joint deltas per action.
+    pub dq: Vec<Vec<f64>>,
+}
+
+/// The trajectory file.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct Trajectory {
+    /// Scene name.
+    pub scene: String,
+    /// Raw state rows, initial state first.
+    pub states: Vec<Vec<f64>>,
+    /// Validity of each state row.
+    pub valid: Vec<bool>,
+    /// Contacts at each state row (empty for the initial state).
+    pub contacts: Vec<Vec<ContactReport>>,
+    /// Deepest penetration after each action (m), 0 for the initial state.
+    pub max_penetration: Vec<f64>,
+    /// Flags of each action (empty for the initial state).
+    pub flags: Vec<Vec<StepFlag>>,
+    /// Task metric of each state row: screwdriver yaw (rad, clockwise negative, unwrapped) or
+    /// the card's planar distance to its goal (m; goal = start − 6 cm in y).
+    #[serde(default)]
+    pub metric: Vec<f64>,
+    /// Error that stopped the run early, if any.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub error: Option<String>,
+}
+
+/// The task metric of a state row (see [`Trajectory::metric`]); `start` is the first row.
+pub fn task_metric(scene: SceneKind, start: &[f64], state: &[f64]) -> f64 {
+    let a = scene.action_dim();
+    match scene {
+        SceneKind::Screwdriver => state[a + 2],
+        SceneKind::Card => {
+            let goal = crate::scenes::card::goal_from_start(start[a], start[a + 1]);
+            crate::scenes::card::distance_to_goal(state[a], state[a + 1], goal)
+        }
+    }
+}
+
+fn parse_scene(name: &str) -> Result<SceneKind, SimCliError> {
+    SceneKind::from_name(name).ok_or_else(|| SimCliError::Scene(name.to_string()))
+}
+
+fn read(path: &Path) -> Result<String, SimCliError> {
+    std::fs::read_to_string(path).map_err(|source| SimCliError::Io {
+        path: path.display().to_string(),
+        source,
+    })
+}
+
+/// Read and validate a commands file for a scene.
+pub fn load_commands(path: &Path, scene: SceneKind) -> Result<Vec<Vec<f64>>, SimCliError> {
+    let p = path.display().to_string();
+    let cmds: Commands = serde_json::from_str(&read(path)?).map_err(|e| SimCliError::Json {
+        path: p.clone(),
+        message: e.to_string(),
+    })?;
+    for (row, dq) in cmds.dq.iter().enumerate() {
+        if dq.len() != scene.action_dim() {
+            return Err(SimCliError::RowLength {
+                path: p,
+                row,
+                scene: scene.name(),
+                expected: scene.action_dim(),
+                got: dq.len(),
+            });
+        }
+        if let Some(col) = dq.iter().position(|v| !v.is_finite()) {
+            return Err(SimCliError::NonFinite { path: p, row, col });
+        }
+    }
+    Ok(cmds.dq)
+}
+
+/// Execute commands in a fresh world; returns the trajectory and the error that stopped it.
+pub fn run_commands(
+    world: &mut World,
+    dq: &[Vec<f64>],
+) -> (Trajectory, Option<(usize, WorldError)>) {
+    let mut traj = Trajectory {
+        scene: world.scene().name().into(),
+        states: vec![world.state()],
+        valid: vec![world.valid()],
+        contacts: vec![Vec::new()],
+        max_penetration: vec![world.max_penetration()],
+        flags: vec![Vec::new()],
+        metric: Vec::new(),
+        error: None,
+    };
+    for (k, row) in dq.iter().enumerate() {
+        match world.step_action(row) {
+            Ok(rep) => {
+                traj.states.push(world.state());
+                traj.valid.push(world.valid());
+                traj.contacts.push(rep.contacts);
+                traj.max_penetration.push(rep.max_penetration);
+                traj.flags.push(rep.flags);
+            }
+            Err(e) => {
+                traj.error = Some(format!("action {k}: {e}"));
+                return (traj, Some((k, e)));
+            }
+        }
+    }
+    (traj, None)
+}
+
+fn write_json<T: Serialize>(path: &Path, value: &T) -> Result<(), SimCliError> {
+    let text = serde_json::to_string(value).map_err(|e| SimCliError::Json {
+        path: path.display().to_string(),
+        message: e.to_string(),
+    })?;
+    crate::atomic_write::write_atomic(path, text.as_bytes()).map_err(|source| SimCliError::Io {
+        path: path.display().to_string(),
+        source,
+    })
+}
+
+fn run(args: &RunArgs) -> Result<(), SimCliError> {
+    let scene = parse_scene(&args.scene)?;
+    let dq = load_commands(&args.commands, scene)?;
+    let hand = match &args.hand {
+        Some(p) => HandModel::load(p).map_err(anyhow::Error::from)?,
+        None => HandModel::allegro_v4(),
+    };
+    let mut world = World::with_model(scene, hand, WorldParams::for_scene(scene));
+    let (traj, failure) = match &args.log {
+        None => run_commands(&mut world, &dq),
+        Some(log) => {
+            // Route every action through the Hand trait so the log can be replayed.
+            use crate::hand::Hand;
+            let params = world.params().clone();
+            let mut rec =
+                Recorder::create(world, log, Some(params)).map_err(anyhow::Error::from)?;
+            let mut traj = Trajectory {
+                scene: scene.name().into(),
+                states: vec![rec.inner().state()],
+                valid: vec![rec.inner().valid()],
+                contacts: vec![Vec::new()],
+                max_penetration: vec![rec.inner().max_penetration()],
+                flags: vec![Vec::new()],
+                metric: Vec::new(),
+                error: None,
+            };
+            let mut failure = None;
+            for (k, row) in dq.iter().enumerate() {
+                let mut targets = rec.inner().joints();
+                for (i, f) in scene.task_fingers().iter().enumerate() {
+                    for j in 0..4 {
+                        targets[f.index()][j] += row[4 * i + j];
+                    }
+                }
+                match rec.command(&targets) {
+                    Ok(rep) => {
+                        traj.states.push(rec.inner().state());
+                        traj.valid.push(rec.inner().valid());
+                        traj.contacts.push(rep.contacts);
+                        traj.max_penetration.push(rep.max_penetration);
+                        traj.flags.push(rep.flags);
+                    }
+                    Err(crate::hand::HandError::World(e)) => {
+                        traj.error = Some(format!("action {k}: {e}"));
+                        failure = Some((k, e));
+                        break;
+                    }
+                    Err(e) => return Err(anyhow::Error::from(e).into()),
+                }
+            }
+            rec.finish().map_err(anyhow::Error::from)?;
+            (traj, failure)
+        }
+    };
+    let mut traj = traj;
+    traj.metric = traj
+        .states
+        .iter()
+        .map(|s| task_metric(scene, &traj.states[0], s))
+        .collect();
+    write_json(&args.out, &traj)?;
+    if let Some((action, source)) = failure {
+        return Err(SimCliError::Action { action, source });
+    }
+    let last = traj.states.last().cloned().unwrap_or_default();
+    println!(
+        "{}",
+        serde_json::json!({
+            "scene": scene.name(),
+            "actions": dq.len(),
+            "final_state": last,
+            "valid": traj.valid.last(),
+            "metric": traj.metric.last(),
+        })
+    );
+    Ok(())
+}
+
+fn render_cmd(args: &RenderArgs) -> Result<(), SimCliError> {
+    let scene = parse_scene(&args.scene)?;
+    let mut world = World::new(scene);
+    let mut contacts = Vec::new();
+    let mut heading = format!("{} initial state", scene.name());
+    if let Some(path) = &args.trajectory {
+        let p = path.display().to_string();
+        let traj: Trajectory =
+            serde_json::from_str(&read(path)?).map_err(|e| SimCliError::Json {
+                path: p.clone(),
+                message: e.to_string(),
+            })?;
+        if traj.scene != scene.name() {
+            return Err(SimCliError::Json {
+                path: p,
+                message: format!("trajectory is for scene {:?}", traj.scene),
+            });
+        }
+        let len = traj.states.len();
+        let step = args.step.unwrap_or(len.saturating_sub(1));
+        let state = traj.states.get(step).ok_or(SimCliError::Step {
+            path: p.clone(),
+            step,
+            len,
+        })?;
+        world.set_state(state).map_err(|e| SimCliError::Json {
+            path: p.clone(),
+            message: e.to_string(),
+        })?;
+        contacts = traj.contacts.get(step).cloned().unwrap_or_default();
+        heading = format!(
+            "{} state {step}/{}: {:?}  valid={}",
+            scene.name(),
+            len - 1,
+            state
+                .iter()
+                .map(|v| (v * 1e4).round() / 1e4)
+                .collect::<Vec<_>>(),
+            traj.valid.get(step).copied().unwrap_or(true)
+        );
+    }
+    let drawing = render::draw(&world, &contacts, &heading);
+    render::write(&drawing, &args.out, args.size).map_err(anyhow::Error::from)?;
+    Ok(())
+}
+
+/// Run `dips sim`.
+pub fn main(args: SimArgs) -> anyhow::Result<()> {
+    match args.command {
+        SimCommand::Run(a) => run(&a)?,
+        SimCommand::Render(a) => render_cmd(&a)?,
+    }
+    Ok(())
+}

@@ -1,0 +1,57 @@
+//! Sampler settings.
+
+/// Defaults of the DIPS code (`spec/algorithms.md` §4.2, §6).
+pub const DEFAULT_GUIDANCE_WEIGHT: f32 = 1.2;
+/// Noise scale of the low-temperature ancestral sampling in the DIPS code.
+pub const DEFAULT_NOISE_FACTOR: f32 = 0.5;
+
+/// How the reverse process is run.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum SamplingMethod {
+    /// Ancestral DDPM over every training step; the posterior noise σ_t is multiplied by
+    /// `noise_factor` (1 is the textbook sampler, 0.5 the DIPS code's).
+    Ddpm {
+        /// Multiplier of the posterior standard deviation.
+        noise_factor: f32,
+    },
+    /// DDIM over `steps` evenly spaced training steps (`1 ≤ steps ≤ diffusion_steps`);
+    /// `eta` 0 is deterministic, 1 matches DDPM's variance.
+    Ddim {
+        /// Number of denoising steps.
+        steps: u16,
+        /// Stochasticity η.
+        eta: f32,
+    },
+}
+
+/// Settings of one sampling call.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SamplerConfig {
+    /// DDPM or DDIM.
+    pub method: SamplingMethod,
+    /// Classifier-free guidance weight `w` in `ε = ε_u + w (ε_c − ε_u)` (1: conditioned only,
+    /// 0: unconditioned only).
+    pub guidance_weight: f32,
+}
+
+impl Default for SamplerConfig {
+    /// DDPM with noise factor 0.5 and guidance weight 1.2, as the DIPS code samples.
+    fn default() -> Self {
+        Self {
+            method: SamplingMethod::Ddpm {
+                noise_factor: DEFAULT_NOISE_FACTOR,
+            },
+            guidance_weight: DEFAULT_GUIDANCE_WEIGHT,
+        }
+    }
+}
+
+impl SamplerConfig {
+    /// DDIM with `steps` steps, η = 0, and the default guidance weight.
+    pub fn ddim(steps: u16) -> Self {
+        Self {
+            method: SamplingMethod::Ddim { steps, eta: 0.0 },
+            guidance_weight: DEFAULT_GUIDANCE_WEIGHT,
+        }
+    }
+}

@@ -1,0 +1,188 @@
+//! Search settings ([`SearchConfig`]) and their validation.
+
+use core::fmt;
+
+/// The longest mode sequence a plan can hold (beyond an executed root mode).
+pub const MAX_PLAN_LEN: usize = 16;
+
+/// How the cost-to-come `g` of a node is formed from its segments' expected costs.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum CostToCome {
+    /// `g = Σ` of the expected segment costs along the sequence (the paper's Eq. for `g`).
+    #[default]
+    Cumulative,
+    /// `g` = the expected cost of the last segment only (what the authors' code computes).
+    LastSegment,
+}
+
+/// Which node representation the search uses.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum SearchVariant {
+    /// `k` particles per node, resampled by score (Algorithm 1).
+    #[default]
+    Particles,
+    /// Ablation 5: one stored trajectory per node; `k` segments are diffused per mode from
+    /// it and the highest-scoring one is kept.
+    MaxLikelihood,
+}
+
+/// Settings of one planning call. The fields mirror the wire's `SearchSettings`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SearchConfig {
+    /// Particles per node (`k`); with [`SearchVariant::MaxLikelihood`] the number of
+    /// segments diffused per mode. Must not exceed the planner's capacity `K`.
+    pub k: u16,
+    /// Largest number of modes appended to the root (the search depth).
+    pub max_depth: u8,
+    /// Score discount `γ` in `(0, 1]`.
+    pub gamma: f32,
+    /// Weight `α` of the terminal cost `φ` in the heuristic.
+    pub alpha: f32,
+    /// Weight `β` of the prior's negative log-likelihood in the heuristic.
+    pub beta: f32,
+    /// Minimum transition probability enforced on the prior, in `[0, 1)`.
+    pub p_min: f32,
+    /// Largest number of node expansions (sampler batches); 0 = limited only by capacity.
+    pub node_budget: u32,
+    /// Wall-clock budget in milliseconds, read from the injected clock; 0 = none.
+    pub time_budget_ms: u32,
+    /// Seed of the planner's random stream (resampling and the sampler's noise).
+    pub seed: u64,
+    /// How `g` is formed.
+    pub cost_to_come: CostToCome,
+    /// Particle or max-likelihood nodes.
+    pub variant: SearchVariant,
+}
+
+impl Default for SearchConfig {
+    /// The paper's settings: `k = 16`, `γ = 0.9`, `α = 1e4`, `β = 1e3`, `p_min = 0.1`,
+    /// depth 7, 300 s timeout, no node budget, cumulative `g`, particle nodes.
+    fn default() -> Self {
+        Self {
+            k: 16,
+            max_depth: 7,
+            gamma: 0.9,
+            alpha: 1e4,
+            beta: 1e3,
+            p_min: 0.1,
+            node_budget: 0,
+            time_budget_ms: 300_000,
+            seed: 0,
+            cost_to_come: CostToCome::Cumulative,
+            variant: SearchVariant::Particles,
+        }
+    }
+}
+
+impl SearchConfig {
+    /// The authors' card settings: the heuristic is `1e5 · (ȳ − goal)²` with no prior term
+    /// (`α = 1e5`, `β = 0`), depth = modes remaining (5 at the start of a trial).
+    pub fn card() -> Self {
+        Self {
+            alpha: 1e5,
+            beta: 0.0,
+            max_depth: 5,
+            ..Self::default()
+        }
+    }
+
+    /// Check every field; the first bad one is named.
+    pub fn validate(&self) -> Result<(), ConfigError> {
+        if self.k == 0 {
+            return Err(ConfigError::K);
+        }
+        if self.max_depth == 0 || usize::from(self.max_depth) > MAX_PLAN_LEN {
+            return Err(ConfigError::MaxDepth);
+        }
+        if !(self.gamma.is_finite() && self.gamma > 0.0 && self.gamma <= 1.0) {
+            return Err(ConfigError::Gamma);
+        }
+        if !(self.alpha.is_finite() && self.alpha >= 0.0) {
+            return Err(ConfigError::Alpha);
+        }
+        if !(self.beta.is_finite() && self.beta >= 0.0) {
+            return Err(ConfigError::Beta);
+        }
+        if !(self.p_min.is_finite() && self.p_min >= 0.0 && self.p_min < 1.0) {
+            return Err(ConfigError::PMin);
+        }
+        Ok(())
+    }
+}
+
+/// The [`SearchConfig`] field that is out of range.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[non_exhaustive]
+pub enum ConfigError {
+    /// `k` is zero.
+    K,
+    /// `max_depth` is zero or above [`MAX_PLAN_LEN`].
+    MaxDepth,
+    /// `gamma` is not in `(0, 1]`.
+    Gamma,
+    /// `alpha` is negative or not finite.
+    Alpha,
+    /// `beta` is negative or not finite.
+    Beta,
+    /// `p_min` is not in `[0, 1)`, or too large for the task's mode count (`p_min · modes > 1`).
+    PMin,
+}
+
+impl fmt::Display for ConfigError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(match self {
+            ConfigError::K => "search config: k must be at least 1",
+            ConfigError::MaxDepth => "search config: max_depth must be in 1..=16",
+            ConfigError::Gamma => "search config: gamma must be in (0, 1]",
+            ConfigError::Alpha => "search config: alpha must be finite and >= 0",
+            ConfigError::Beta => "search config: beta must be finite and >= 0",
+            ConfigError::PMin => "search config: p_min must be in [0, 1) with p_min*modes <= 1",
+        })
+    }
+}
+
+impl core::error::Error for ConfigError {}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn default_is_the_paper_and_valid() {
+        let c = SearchConfig::default();
+        assert_eq!((c.k, c.max_depth, c.time_budget_ms), (16, 7, 300_000));
+        assert_eq!((c.gamma, c.alpha, c.beta, c.p_min), (0.9, 1e4, 1e3, 0.1));
+        assert_eq!(c.validate(), Ok(()));
+        assert_eq!(SearchConfig::card().validate(), Ok(()));
+    }
+
+    #[test]
+    fn each_bad_field_is_named() {
+        let ok = SearchConfig::default();
+        let cases = [
+            (SearchConfig { k: 0, ..ok }, ConfigError::K),
+            (SearchConfig { max_depth: 0, ..ok }, ConfigError::MaxDepth),
+            (
+                SearchConfig {
+                    max_depth: 17,
+                    ..ok
+                },
+                ConfigError::MaxDepth,
+            ),
+            (SearchConfig { gamma: 0.0, ..ok }, ConfigError::Gamma),
+            (SearchConfig { gamma: 1.5, ..ok }, ConfigError::Gamma),
+            (
+                SearchConfig {
+                    alpha: f32::NAN,
+                    ..ok
+                },
+                ConfigError::Alpha,
+            ),
+            (SearchConfig { beta: -1.0, ..ok }, ConfigError::Beta),
+            (SearchConfig { p_min: 1.0, ..ok }, ConfigError::PMin),
+        ];
+        for (c, e) in cases {
+            assert_eq!(c.validate(), Err(e));
+        }
+    }
+}

@@ -1,0 +1,135 @@
+//! What a planning call returns ([`SearchReport`]).
+
+use super::config::{ConfigError, MAX_PLAN_LEN};
+use crate::mode::{MAX_STATE_DIM, ModeId};
+
+/// A capacity of the planner (or of the kernel) that a call needed more of.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[non_exhaustive]
+pub enum Capacity {
+    /// `k` exceeds the planner's particle capacity `K`.
+    Particles,
+    /// The node arena (`N`) is full.
+    Nodes,
+    /// The open list (`O`) is full.
+    OpenList,
+    /// The task's state has more columns than [`MAX_STATE_DIM`].
+    StateDim,
+    /// A segment has more floats (`T·D`) than the planner's capacity `S`.
+    SegmentFloats,
+    /// The task has more modes than [`crate::mode::MAX_MODES`].
+    Modes,
+}
+
+/// Why the search stopped before reaching the goal.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[non_exhaustive]
+pub enum ApproximateReason {
+    /// The node budget was spent.
+    NodeBudget,
+    /// The time budget was spent.
+    TimeBudget,
+    /// Every sequence up to the maximum depth was examined (the open list ran empty).
+    Exhausted,
+    /// A run-time capacity (nodes, open list) ran out.
+    Capacity(Capacity),
+    /// The sampler returned an error.
+    SamplerFailed,
+    /// The scorer returned an error.
+    ScorerFailed,
+}
+
+/// The outcome of a planning call.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[non_exhaustive]
+pub enum SearchStatus {
+    /// A node whose expected terminal state meets the goal was popped; the plan leads to it.
+    Found,
+    /// The goal was not reached; the plan leads to the examined node closest to it (lowest
+    /// terminal cost `φ`).
+    Approximate(ApproximateReason),
+    /// The configuration is invalid; nothing was searched.
+    InvalidConfig(ConfigError),
+    /// The problem needs more than the planner's capacity; nothing was searched.
+    CapacityExceeded(Capacity),
+    /// The problem is inconsistent (prior or dimensions do not match the task, unknown
+    /// executed mode); nothing was searched.
+    InvalidProblem,
+    /// The start state has the wrong length or a non-finite entry.
+    InvalidStart,
+    /// The goal's terminal cost is not finite at the start state.
+    InvalidGoal,
+}
+
+impl SearchStatus {
+    /// Whether the report carries a plan (found or approximate).
+    pub const fn has_plan(&self) -> bool {
+        matches!(self, SearchStatus::Found | SearchStatus::Approximate(_))
+    }
+}
+
+/// Counters of one planning call.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct SearchStats {
+    /// Nodes expanded (one sampler batch each).
+    pub nodes_expanded: u32,
+    /// Nodes created, the root included.
+    pub nodes_generated: u32,
+    /// Nodes taken off the open list and goal-tested.
+    pub nodes_popped: u32,
+    /// Calls to the sampler.
+    pub sampler_calls: u32,
+    /// Calls to the scorer.
+    pub scorer_calls: u32,
+    /// Segments sampled.
+    pub segments_sampled: u32,
+    /// Children not created because every score of their mode was zero or invalid.
+    pub dead_children: u32,
+    /// Largest open-list length seen.
+    pub max_open: u32,
+    /// Wall time by the injected clock, in milliseconds.
+    pub elapsed_ms: u32,
+}
+
+/// The result of a planning call.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SearchReport {
+    /// How the search ended.
+    pub status: SearchStatus,
+    /// The planned modes after the root (the executed mode of a replanning call excluded);
+    /// empty when the root itself is the answer or there is no plan.
+    pub modes: heapless::Vec<ModeId, MAX_PLAN_LEN>,
+    /// The executed mode the root continued from (replanning), as given.
+    pub executed: Option<ModeId>,
+    /// Score-weighted mean of the result node's particle end states (raw layout; `cos`/`sin`
+    /// columns are averaged as they are). Empty when there is no plan.
+    pub terminal_state: heapless::Vec<f32, MAX_STATE_DIM>,
+    /// Score-weighted mean progress (screwdriver yaw, card `y`) of the result node; NaN when
+    /// there is no plan.
+    pub expected_progress: f32,
+    /// Terminal cost `φ(expected_progress)` of the result node.
+    pub terminal_cost: f32,
+    /// Cost-to-come `g` of the result node.
+    pub cost_to_come: f32,
+    /// Heuristic `h` of the result node.
+    pub heuristic: f32,
+    /// Counters.
+    pub stats: SearchStats,
+}
+
+impl SearchReport {
+    /// A report without a plan.
+    pub(crate) fn empty(status: SearchStatus, executed: Option<ModeId>) -> Self {
+        Self {
+            status,
+            modes: heapless::Vec::new(),
+            executed,
+            terminal_state: heapless::Vec::new(),
+            expected_progress: f32::NAN,
+            terminal_cost: f32::NAN,
+            cost_to_come: f32::NAN,
+            heuristic: f32::NAN,
+            stats: SearchStats::default(),
+        }
+    }
+}

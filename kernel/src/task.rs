@@ -1,0 +1,389 @@
+//! The real task costs on raw trajectory segments (`CONTRACTS.md` §2 layout), as the search
+//! uses them: the per-mode CSVTO cost `J` of `spec/algorithms.md` §2.4 evaluated on a
+//! diffused segment, the terminal cost `φ` and the goal test.
+//!
+//! # What `J` contains, and what it leaves out
+//! With `q` the finger joints, `Δq` the joint-delta actions, `o` the object pose and `o*` the
+//! mode's goal computed from the segment's start state, over rows `t = 0..H` (`H = T − 1`):
+//! - base: `10 Σ_{t≥1} ‖q_t − q_{t−1}‖² + 10 Σ_{t<H} ‖Δq_t‖²` (smoothness uses
+//!   `q_t − q_{t−1}`, not the authors' `q_t − q_T`: spec §7.7);
+//! - modes with a finger in contact: `10 ‖o_H − o*‖² + 3 Σ_{0<t<H} ‖o_t − o*‖²
+//!   + Σ_{t<H} Σ_{contact i} ‖f_{i,t}‖²`;
+//! - screwdriver: `Σ_{t<H} ‖o_{t+1} − o_t‖² + 500 Σ_{t≥1} (roll_t² + pitch_t²)`;
+//! - card: `Σ_{t<H} ‖o_{t+1} − o_t‖² + 15000 ‖o_H − o*‖² + 15000 Σ_{0<t<H} ‖o_t − o*‖²`;
+//! - everything times `α_cost = 10` ([`ALPHA_COST`]).
+//!
+//! Row 0 (the fixed start state) is not a decision variable in CSVTO and is left out of the
+//! state sums. Angle differences (yaw, card θ) are wrapped to `[−π, π]`.
+//!
+//! **Left out: the regrasp target-contact cost `J_r`** (`1000 Σ ‖p_r(q_t, õ_t) − p̄_r‖²`). It
+//! needs fingertip forward kinematics of the Allegro hand, which lives on the host, not in
+//! the kernel. The kernel's `J` is therefore lower than the host CSVTO cost for regrasp
+//! modes by exactly that term.
+//!
+//! Goals `o*`: screwdriver turn `(0, 0, yaw_0 − π/6)`, screwdriver regrasps `(0, 0, yaw_0)`;
+//! card move modes (`index`, `middle`, `both`) `(x_0, y_0 − 0.02, θ_0)`, card `regrasp`
+//! `(x_0, y_0, θ_0)`.
+
+use crate::mode::{ContactMode, SegmentDims, Task};
+use crate::search::TaskObjective;
+use core::f32::consts::{PI, TAU};
+
+/// The global cost weight of the authors' trajectory optimiser (`problem.alpha`).
+pub const ALPHA_COST: f32 = 10.0;
+
+/// Screwdriver turn-mode goal: this much yaw per turn segment (clockwise is negative).
+pub const SCREWDRIVER_TURN_PER_MODE: f32 = -PI / 6.0;
+
+/// The screwdriver's search goal per replan: `yaw_now − π/3`.
+pub const SCREWDRIVER_GOAL_UPDATE: f32 = -PI / 3.0;
+
+/// Card move-mode goal: this much `y` per segment (metres).
+pub const CARD_MOVE_PER_MODE: f32 = -0.02;
+
+/// The card's search goal `o_G`: `y = −0.06` m.
+pub const CARD_GOAL_Y: f32 = -0.06;
+
+/// Wrap an angle to `[−π, π]`.
+pub fn wrap_angle(a: f32) -> f32 {
+    libm::remainderf(a, TAU)
+}
+
+/// Column layout of a task's rows.
+#[derive(Debug, Clone, Copy)]
+struct Layout {
+    /// Finger joints `q` start at 0 and span this many columns.
+    joints: usize,
+    /// Object pose columns: the first two plain, then a cos/sin pair.
+    object: usize,
+    /// Whether the two plain object columns are roll/pitch (screwdriver) or x/y (card).
+    screwdriver: bool,
+    /// First action column (`Δq` first, then forces).
+    action: usize,
+    /// Fingers (each has 3 force columns after `Δq`).
+    fingers: usize,
+}
+
+const SCREWDRIVER: Layout = Layout {
+    joints: 12,
+    object: 12,
+    screwdriver: true,
+    action: 16,
+    fingers: 3,
+};
+
+const CARD: Layout = Layout {
+    joints: 8,
+    object: 8,
+    screwdriver: false,
+    action: 12,
+    fingers: 2,
+};
+
+impl Layout {
+    /// Object pose `(a, b, angle)` of a row: (roll, pitch, yaw) or (x, y, θ).
+    fn pose(&self, row: &[f32]) -> [f32; 3] {
+        let o = self.object;
+        [row[o], row[o + 1], libm::atan2f(row[o + 3], row[o + 2])]
+    }
+
+    /// Squared distance between poses, the angle wrapped.
+    fn pose_dist2(a: &[f32; 3], b: &[f32; 3]) -> f32 {
+        let d0 = a[0] - b[0];
+        let d1 = a[1] - b[1];
+        let d2 = wrap_angle(a[2] - b[2]);
+        d0 * d0 + d1 * d1 + d2 * d2
+    }
+
+    fn cost(&self, task: Task, mode: ContactMode, dims: &SegmentDims, seg: &[f32]) -> f32 {
+        let d = dims.dim();
+        let rows = dims.horizon;
+        if rows == 0 || seg.len() < rows * d {
+            return f32::NAN;
+        }
+        let h = rows - 1;
+        let row = |t: usize| &seg[t * d..(t + 1) * d];
+        let o0 = self.pose(row(0));
+        let goal = match (task, mode.contact_count() > 0) {
+            (Task::Screwdriver, _) if mode.contact_count() as usize == self.fingers => {
+                [0.0, 0.0, o0[2] + SCREWDRIVER_TURN_PER_MODE]
+            }
+            (Task::Screwdriver, _) => [0.0, 0.0, o0[2]],
+            (Task::Card, true) => [o0[0], o0[1] + CARD_MOVE_PER_MODE, o0[2]],
+            (Task::Card, false) => o0,
+        };
+        let in_contact = mode.contact_count() > 0;
+
+        let mut smooth = 0.0f32;
+        let mut dq = 0.0f32;
+        let mut force = 0.0f32;
+        let mut obj_run = 0.0f32;
+        let mut obj_step = 0.0f32;
+        let mut upright = 0.0f32;
+        for t in 0..rows {
+            let r = row(t);
+            let o = self.pose(r);
+            if t >= 1 {
+                let p = row(t - 1);
+                smooth += r[..self.joints]
+                    .iter()
+                    .zip(&p[..self.joints])
+                    .map(|(a, b)| (a - b) * (a - b))
+                    .sum::<f32>();
+                if self.screwdriver {
+                    upright += o[0] * o[0] + o[1] * o[1];
+                }
+                if t < h {
+                    obj_run += Self::pose_dist2(&o, &goal);
+                }
+            }
+            if t < h {
+                let a = &r[self.action..];
+                dq += a[..self.joints].iter().map(|v| v * v).sum::<f32>();
+                for i in 0..self.fingers {
+                    if mode.in_contact(i) {
+                        let f = &a[self.joints + 3 * i..self.joints + 3 * i + 3];
+                        force += f.iter().map(|v| v * v).sum::<f32>();
+                    }
+                }
+                let next = self.pose(row(t + 1));
+                obj_step += Self::pose_dist2(&next, &o);
+            }
+        }
+        let terminal = Self::pose_dist2(&self.pose(row(h)), &goal);
+        let mut j = 10.0 * smooth + 10.0 * dq + obj_step;
+        if in_contact {
+            j += 10.0 * terminal + 3.0 * obj_run + force;
+        }
+        if self.screwdriver {
+            j += 500.0 * upright;
+        } else {
+            j += 15000.0 * terminal + 15000.0 * obj_run;
+        }
+        ALPHA_COST * j
+    }
+}
+
+/// The screwdriver's costs: progress is the yaw, `φ(ȳaw) = max(0, ȳaw − goal)`, the goal is
+/// reached when `ȳaw ≤ goal`.
+///
+/// Yaws are recovered with `atan2(sin, cos)` and unwrapped around `reference_yaw` (the yaw at
+/// planning time), so a goal below `−π` stays reachable as long as a plan turns the
+/// screwdriver by less than π.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ScrewdriverObjective {
+    /// The yaw the progress is unwrapped around (normally the current yaw).
+    pub reference_yaw: f32,
+    /// The search goal `o_G` in yaw (radians).
+    pub goal_yaw: f32,
+}
+
+impl ScrewdriverObjective {
+    /// The paper's per-replan goal from the current raw state: `goal = yaw_now − π/3`.
+    pub fn from_state(state: &[f32]) -> Option<Self> {
+        let yaw = Self::raw_yaw(state)?;
+        Some(Self {
+            reference_yaw: yaw,
+            goal_yaw: yaw + SCREWDRIVER_GOAL_UPDATE,
+        })
+    }
+
+    /// `atan2(sin_yaw, cos_yaw)` of a raw screwdriver state; `None` if it is too short.
+    pub fn raw_yaw(state: &[f32]) -> Option<f32> {
+        let c = state.get(SCREWDRIVER.object + 2)?;
+        let s = state.get(SCREWDRIVER.object + 3)?;
+        Some(libm::atan2f(*s, *c))
+    }
+}
+
+impl TaskObjective for ScrewdriverObjective {
+    fn accepts(&self, dims: &SegmentDims) -> bool {
+        dims.state_dim == 16 && dims.action_dim == 21 && dims.fingers == 3 && dims.horizon >= 2
+    }
+
+    fn segment_cost(&self, mode: ContactMode, dims: &SegmentDims, segment: &[f32]) -> f32 {
+        SCREWDRIVER.cost(Task::Screwdriver, mode, dims, segment)
+    }
+
+    fn progress(&self, state: &[f32]) -> f32 {
+        match Self::raw_yaw(state) {
+            Some(yaw) => self.reference_yaw + wrap_angle(yaw - self.reference_yaw),
+            None => f32::NAN,
+        }
+    }
+
+    fn terminal_cost(&self, expected_progress: f32) -> f32 {
+        // max(0, d) that keeps NaN (`f32::max` would drop it).
+        let d = expected_progress - self.goal_yaw;
+        if d <= 0.0 { 0.0 } else { d }
+    }
+
+    fn goal_reached(&self, expected_progress: f32) -> bool {
+        expected_progress <= self.goal_yaw
+    }
+}
+
+/// The card's costs: progress is the card's `y`, `φ(ȳ) = (ȳ − goal)²`, the goal is reached
+/// when `ȳ ≤ goal`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct CardObjective {
+    /// The search goal `o_G` in `y` (metres), [`CARD_GOAL_Y`] in the paper.
+    pub goal_y: f32,
+}
+
+impl Default for CardObjective {
+    fn default() -> Self {
+        Self {
+            goal_y: CARD_GOAL_Y,
+        }
+    }
+}
+
+impl TaskObjective for CardObjective {
+    fn accepts(&self, dims: &SegmentDims) -> bool {
+        dims.state_dim == 12 && dims.action_dim == 17 && dims.fingers == 2 && dims.horizon >= 2
+    }
+
+    fn segment_cost(&self, mode: ContactMode, dims: &SegmentDims, segment: &[f32]) -> f32 {
+        CARD.cost(Task::Card, mode, dims, segment)
+    }
+
+    fn progress(&self, state: &[f32]) -> f32 {
+        state.get(CARD.object + 1).copied().unwrap_or(f32::NAN)
+    }
+
+    fn terminal_cost(&self, expected_progress: f32) -> f32 {
+        let d = expected_progress - self.goal_y;
+        d * d
+    }
+
+    fn goal_reached(&self, expected_progress: f32) -> bool {
+        expected_progress <= self.goal_y
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::mode::ModeId;
+
+    fn mode(task: Task, name: &str) -> ContactMode {
+        task.contact_mode(task.mode_by_name(name).unwrap()).unwrap()
+    }
+
+    /// A screwdriver segment at rest except for the yaw, which goes from 0 by `step` per row.
+    fn screwdriver_segment(step: f32) -> ([f32; 13 * 37], SegmentDims) {
+        let dims = Task::Screwdriver.dims();
+        let mut seg = [0.0f32; 13 * 37];
+        for t in 0..13 {
+            let yaw = step * t as f32;
+            seg[t * 37 + 14] = libm::cosf(yaw);
+            seg[t * 37 + 15] = libm::sinf(yaw);
+        }
+        (seg, dims)
+    }
+
+    fn close(a: f32, b: f32) -> bool {
+        (a - b).abs() <= 1e-4 * b.abs().max(1.0)
+    }
+
+    #[test]
+    fn screwdriver_turn_and_regrasp_costs_by_hand() {
+        let s = PI / 72.0;
+        let (seg, dims) = screwdriver_segment(-s);
+        let obj = ScrewdriverObjective {
+            reference_yaw: 0.0,
+            goal_yaw: -PI / 3.0,
+        };
+        let turn = obj.segment_cost(mode(Task::Screwdriver, "turn"), &dims, &seg);
+        // steps 12 s², running (s² Σ_{m=1..11} m² = 506 s²) × 3, terminal 0.
+        assert!(close(turn, 10.0 * s * s * (12.0 + 3.0 * 506.0)), "{turn}");
+        let regrasp = obj.segment_cost(mode(Task::Screwdriver, "index-regrasp"), &dims, &seg);
+        // The goal holds yaw 0: terminal (12 s)² = 144 s².
+        assert!(
+            close(regrasp, 10.0 * s * s * (12.0 + 10.0 * 144.0 + 3.0 * 506.0)),
+            "{regrasp}"
+        );
+    }
+
+    #[test]
+    fn forces_count_only_for_contact_fingers_and_smoothness_is_stepwise() {
+        let (mut seg, dims) = screwdriver_segment(0.0);
+        for t in 0..12 {
+            seg[t * 37 + 16 + 12] = 1.0; // f_index_x
+        }
+        let obj = ScrewdriverObjective {
+            reference_yaw: 0.0,
+            goal_yaw: -1.0,
+        };
+        let base = |name| obj.segment_cost(mode(Task::Screwdriver, name), &dims, &seg);
+        let turn_terminal = 10.0 * (PI / 6.0) * (PI / 6.0) + 3.0 * 11.0 * (PI / 6.0) * (PI / 6.0);
+        assert!(close(base("turn"), 10.0 * (12.0 + turn_terminal)));
+        assert!(close(base("index-regrasp"), 0.0));
+        assert!(close(base("thumb-middle-regrasp"), 10.0 * 12.0));
+        // q_index_0 ramps by 0.1 per row: 10 · 12 · 0.01, times α_cost.
+        let (mut seg, dims) = screwdriver_segment(0.0);
+        for t in 0..13 {
+            seg[t * 37] = 0.1 * t as f32;
+        }
+        let c = obj.segment_cost(mode(Task::Screwdriver, "index-regrasp"), &dims, &seg);
+        assert!(close(c, 10.0 * 10.0 * 12.0 * 0.01), "{c}");
+        // Tilt is penalised: roll 0.1 on rows 1..12.
+        let (mut seg, dims) = screwdriver_segment(0.0);
+        for t in 1..13 {
+            seg[t * 37 + 12] = 0.1;
+        }
+        let c = obj.segment_cost(mode(Task::Screwdriver, "index-regrasp"), &dims, &seg);
+        // steps: one 0.01; running 11 × 0.01 × 3; terminal 0.01 × 10; upright 500 × 12 × 0.01.
+        let want = 10.0 * (0.01 + 3.0 * 0.11 + 0.1 + 500.0 * 0.12);
+        assert!(close(c, want), "{c} vs {want}");
+    }
+
+    #[test]
+    fn card_costs_by_hand() {
+        let dims = Task::Card.dims();
+        let mut seg = [0.0f32; 9 * 29];
+        let s = 0.0025f32;
+        for t in 0..9 {
+            seg[t * 29 + 9] = -s * t as f32;
+            seg[t * 29 + 10] = 1.0;
+        }
+        let obj = CardObjective::default();
+        let push = obj.segment_cost(mode(Task::Card, "both"), &dims, &seg);
+        // running Σ_{m=1..7} m² = 140.
+        let want = 10.0 * s * s * (8.0 + 3.0 * 140.0 + 15000.0 * 140.0);
+        assert!(close(push, want), "{push} vs {want}");
+        let hold = obj.segment_cost(mode(Task::Card, "regrasp"), &dims, &seg);
+        let want = 10.0 * s * s * (8.0 + 15000.0 * (64.0 + 140.0));
+        assert!(close(hold, want), "{hold} vs {want}");
+        assert!(obj.accepts(&dims));
+        assert!(!obj.accepts(&Task::Screwdriver.dims()));
+    }
+
+    #[test]
+    fn progress_terminal_cost_and_goal() {
+        let mut state = [0.0f32; 16];
+        let yaw = -3.0f32;
+        state[14] = libm::cosf(yaw);
+        state[15] = libm::sinf(yaw);
+        let obj = ScrewdriverObjective::from_state(&state).unwrap();
+        assert!(close(obj.goal_yaw, -3.0 - PI / 3.0));
+        // Turning past −π keeps the yaw continuous around the reference.
+        let past = -3.5f32;
+        state[14] = libm::cosf(past);
+        state[15] = libm::sinf(past);
+        assert!(close(obj.progress(&state), -3.5));
+        assert_eq!(obj.terminal_cost(obj.goal_yaw - 0.1), 0.0);
+        assert!(close(obj.terminal_cost(obj.goal_yaw + 0.25), 0.25));
+        assert!(obj.goal_reached(obj.goal_yaw) && !obj.goal_reached(obj.goal_yaw + 1e-3));
+        assert!(obj.progress(&[0.0; 3]).is_nan());
+
+        let card = CardObjective::default();
+        let mut s = [0.0f32; 12];
+        s[9] = -0.05;
+        assert!(close(card.progress(&s), -0.05));
+        assert!(close(card.terminal_cost(-0.05), 1e-4));
+        assert!(card.goal_reached(-0.061) && !card.goal_reached(-0.05));
+        let _ = ModeId(0);
+    }
+}

@@ -1,0 +1,175 @@
+//! Planning request and reply.
+
+use heapless::Vec;
+use serde::{Deserialize, Serialize};
+
+use crate::size::{MaxSize, vec_max_size};
+
+/// Most raw state floats a request or reply carries (the screwdriver's 16 state columns).
+pub const MAX_STATE_DIM: usize = 16;
+/// Most contact modes in a planned sequence.
+pub const MAX_PLAN_MODES: usize = 16;
+
+/// The manipulation task (`CONTRACTS.md` §2).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, MaxSize)]
+pub enum Task {
+    /// Turning a screwdriver with index, middle and thumb.
+    Screwdriver,
+    /// Sliding a card with index and middle.
+    Card,
+}
+
+/// How the A* cost-to-come `g` is accumulated (`spec/algorithms.md` §3.3).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, MaxSize)]
+pub enum CostToCome {
+    /// Sum of the per-segment expected costs along the sequence (the paper's semantics).
+    Cumulative,
+    /// Expected cost of the last segment only (the authors' code).
+    LastSegment,
+}
+
+/// Which search the kernel runs.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, MaxSize)]
+pub enum SearchVariant {
+    /// Particle A* with `k` particles per node (DIPS).
+    Particles,
+    /// One stored trajectory per node, keeping the best-scored sample (ablation 5).
+    MaxLikelihood,
+}
+
+/// Search settings; the kernel's `SearchConfig` maps onto exactly these fields.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, MaxSize)]
+pub struct SearchSettings {
+    /// Particles per node.
+    pub k: u16,
+    /// Most modes in a planned sequence (not counting the executed previous mode).
+    pub max_depth: u8,
+    /// Score discount γ per depth.
+    pub gamma: f32,
+    /// Weight α of the terminal-objective term of the heuristic.
+    pub alpha: f32,
+    /// Weight β of the prior negative log-likelihood term of the heuristic.
+    pub beta: f32,
+    /// Floor of the Markov prior's transition probabilities.
+    pub p_min: f32,
+    /// Most node expansions before the search returns its best approximate plan.
+    pub node_budget: u32,
+    /// Wall-clock budget in milliseconds (0: none).
+    pub time_budget_ms: u32,
+    /// Seed of the kernel's random stream for this call.
+    pub seed: u64,
+    /// Cost-to-come accumulation.
+    pub cost_to_come: CostToCome,
+    /// Search variant.
+    pub variant: SearchVariant,
+}
+
+impl Default for SearchSettings {
+    /// The paper's values (`spec/algorithms.md` §6): k 16, depth 7, γ 0.9, α 1e4, β 1e3,
+    /// p_min 0.1, 300 s.
+    fn default() -> Self {
+        Self {
+            k: 16,
+            max_depth: 7,
+            gamma: 0.9,
+            alpha: 1.0e4,
+            beta: 1.0e3,
+            p_min: 0.1,
+            node_budget: 10_000,
+            time_budget_ms: 300_000,
+            seed: 0,
+            cost_to_come: CostToCome::Cumulative,
+            variant: SearchVariant::Particles,
+        }
+    }
+}
+
+/// Ask the kernel for a contact-mode sequence.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct PlanRequest {
+    /// The task, which fixes the state layout and the mode table.
+    pub task: Task,
+    /// The current raw (not normalized) state, in the task's state-column order.
+    pub start_state: Vec<f32, MAX_STATE_DIM>,
+    /// Goal of the search: screwdriver yaw in radians (clockwise negative) or card y in
+    /// metres.
+    pub goal: f32,
+    /// Search settings.
+    pub settings: SearchSettings,
+    /// When replanning, the mode just executed (index into the task's mode table).
+    pub previous_mode: Option<u8>,
+}
+
+impl MaxSize for PlanRequest {
+    const POSTCARD_MAX_SIZE: usize = Task::POSTCARD_MAX_SIZE
+        + vec_max_size::<f32, MAX_STATE_DIM>()
+        + f32::POSTCARD_MAX_SIZE
+        + SearchSettings::POSTCARD_MAX_SIZE
+        + Option::<u8>::POSTCARD_MAX_SIZE;
+}
+
+/// Why a plan is only approximate.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, MaxSize)]
+pub enum ApproximateReason {
+    /// The node budget ran out.
+    NodeBudget,
+    /// The time budget ran out.
+    TimeBudget,
+    /// Every node was expanded without reaching the goal.
+    Exhausted,
+}
+
+/// Outcome of a search (mirror of the kernel's search status).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, MaxSize)]
+pub enum PlanStatus {
+    /// A sequence whose expected terminal state meets the goal.
+    Found,
+    /// The best sequence found, which does not meet the goal.
+    Approximate {
+        /// Why the search stopped.
+        reason: ApproximateReason,
+    },
+    /// No sequence at all (nothing beyond the root could be expanded).
+    NoPlan,
+    /// The start state is invalid for the task.
+    InvalidStart,
+    /// The goal is invalid for the task.
+    InvalidGoal,
+    /// The search was cancelled.
+    Cancelled,
+}
+
+/// Search statistics.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize, MaxSize)]
+pub struct PlanStats {
+    /// Nodes popped and expanded.
+    pub nodes_expanded: u32,
+    /// Child nodes created.
+    pub nodes_generated: u32,
+    /// Diffusion sampler calls.
+    pub sampler_calls: u32,
+    /// Discriminator calls.
+    pub discriminator_calls: u32,
+    /// Wall-clock time of the search in milliseconds.
+    pub elapsed_ms: u32,
+}
+
+/// The kernel's answer to a [`PlanRequest`].
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct PlanReply {
+    /// Planned contact modes, first to execute first (indices into the task's mode table).
+    pub modes: Vec<u8, MAX_PLAN_MODES>,
+    /// Expected (score-weighted) raw terminal state of the plan.
+    pub terminal_state: Vec<f32, MAX_STATE_DIM>,
+    /// Outcome.
+    pub status: PlanStatus,
+    /// Statistics.
+    pub stats: PlanStats,
+}
+
+impl MaxSize for PlanReply {
+    const POSTCARD_MAX_SIZE: usize = vec_max_size::<u8, MAX_PLAN_MODES>()
+        + vec_max_size::<f32, MAX_STATE_DIM>()
+        + PlanStatus::POSTCARD_MAX_SIZE
+        + PlanStats::POSTCARD_MAX_SIZE;
+}

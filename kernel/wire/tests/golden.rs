@@ -1,0 +1,201 @@
+//! Golden encodings: one canonical message per variant against committed bytes, and the
+//! schema key. If one of these fails, the wire layout changed: if that was intended, describe
+//! the change in `SCHEMA` (src/schema.rs), bump `PROTOCOL_VERSION` unless only variants were
+//! appended, and update the bytes below.
+
+mod common;
+
+use common::encode;
+use dips_wire::error::RequestField;
+use dips_wire::*;
+use heapless::Vec;
+
+fn hex(bytes: &[u8]) -> String {
+    bytes.iter().map(|b| format!("{b:02x}")).collect()
+}
+
+fn canonical_to_kernel() -> std::vec::Vec<ToKernel> {
+    vec![
+        ToKernel::Hello(Hello {
+            protocol_version: 1,
+            schema_key: 0x0123_4567_89ab_cdef,
+        }),
+        ToKernel::PlanRequest(PlanRequest {
+            task: Task::Screwdriver,
+            start_state: Vec::from_slice(&[0.5, -1.0, 0.0, 1.0]).unwrap(),
+            goal: -core::f32::consts::FRAC_PI_3,
+            settings: SearchSettings {
+                seed: 42,
+                ..SearchSettings::default()
+            },
+            previous_mode: Some(2),
+        }),
+        ToKernel::ModelBegin(ModelBegin {
+            role: ModelRole::Discriminator,
+            total_len_bytes: 1000,
+            crc32: 0xCBF4_3926,
+        }),
+        ToKernel::ModelChunk(ModelChunk {
+            offset_bytes: 512,
+            bytes: Vec::from_slice(&[0, 1, 2, 0xFF]).unwrap(),
+        }),
+        ToKernel::ModelEnd,
+    ]
+}
+
+fn canonical_from_kernel() -> std::vec::Vec<FromKernel> {
+    vec![
+        FromKernel::HelloAck(HelloAck {
+            protocol_version: 1,
+            schema_key: 0x0123_4567_89ab_cdef,
+            max_frame_len_bytes: 540,
+            model_chunk_len_bytes: 512,
+        }),
+        FromKernel::PlanReply(PlanReply {
+            modes: Vec::from_slice(&[2, 0, 1]).unwrap(),
+            terminal_state: Vec::from_slice(&[0.25, -0.5]).unwrap(),
+            status: PlanStatus::Approximate {
+                reason: ApproximateReason::TimeBudget,
+            },
+            stats: PlanStats {
+                nodes_expanded: 7,
+                nodes_generated: 21,
+                sampler_calls: 7,
+                discriminator_calls: 7,
+                elapsed_ms: 1234,
+            },
+        }),
+        FromKernel::ModelAck(ModelAck {
+            role: ModelRole::Denoiser,
+            received_bytes: 512,
+            total_len_bytes: 1000,
+        }),
+        FromKernel::ModelLoaded(ModelLoaded {
+            role: ModelRole::Denoiser,
+            len_bytes: 1000,
+            crc32: 0xCBF4_3926,
+        }),
+        FromKernel::Error(WireError::VersionMismatch {
+            kernel_version: 1,
+            host_version: 2,
+            kernel_schema_key: 3,
+            host_schema_key: 4,
+        }),
+    ]
+}
+
+/// Every `WireError` variant (errors are the kernel's main vocabulary, so pin them all).
+fn canonical_errors() -> std::vec::Vec<WireError> {
+    vec![
+        WireError::BadFrame,
+        WireError::TooLong {
+            len_bytes: 2000,
+            max_bytes: 540,
+        },
+        WireError::DecodeFailed,
+        WireError::UnknownRequest { tag: 9 },
+        WireError::VersionMismatch {
+            kernel_version: 1,
+            host_version: 2,
+            kernel_schema_key: 3,
+            host_schema_key: 4,
+        },
+        WireError::HandshakeRequired,
+        WireError::Busy,
+        WireError::Upload(UploadError::CrcMismatch {
+            expected_crc32: 1,
+            computed_crc32: 2,
+        }),
+        WireError::ModelNotLoaded {
+            role: ModelRole::Discriminator,
+        },
+        WireError::PlannerUnavailable,
+        WireError::InvalidRequest {
+            field: RequestField::PreviousMode,
+        },
+    ]
+}
+
+const GOLDEN_TO_KERNEL: [&str; 5] = [
+    "02070b01ef9bafcdf8acd1910100",
+    "03070102040101023f010380bf01010101010d803f920a86bf10076666663f04401c46010d7a44cdcccc3d904ee0a7122a0103010200",
+    "0b070201e807a6f2d0df0c00",
+    "060703800404040102ff00",
+    "03070400",
+];
+const GOLDEN_FROM_KERNEL: [&str; 5] = [
+    "02070f01ef9bafcdf8acd191019c04800400",
+    "05070103020301020103803e01010abf010107150707d20900",
+    "030702058004e80700",
+    "03070308e807a6f2d0df0c00",
+    "080704040102030400",
+];
+const GOLDEN_ERRORS: [&str; 11] = [
+    "0307040100",
+    "08070401d00f9c0400",
+    "0407040200",
+    "050704030900",
+    "080704040102030400",
+    "0407040500",
+    "0407040600",
+    "0707040705010200",
+    "050704080100",
+    "0407040900",
+    "0507040a0300",
+];
+const GOLDEN_SCHEMA_KEY: u64 = 0x78f3_ad3a_ff76_9280;
+
+#[test]
+fn schema_key_is_pinned() {
+    assert_eq!(SCHEMA_KEY, GOLDEN_SCHEMA_KEY, "actual {SCHEMA_KEY:#018x}");
+    assert_eq!(PROTOCOL_VERSION, 1);
+}
+
+#[test]
+fn to_kernel_golden_bytes() {
+    let msgs = canonical_to_kernel();
+    assert_eq!(msgs.len() as u32, <ToKernel as Message>::VARIANT_COUNT);
+    let actual: std::vec::Vec<String> = msgs.into_iter().map(|m| hex(&encode(7, m))).collect();
+    assert_eq!(actual, GOLDEN_TO_KERNEL, "actual: {actual:#?}");
+}
+
+#[test]
+fn from_kernel_golden_bytes() {
+    let msgs = canonical_from_kernel();
+    assert_eq!(msgs.len() as u32, <FromKernel as Message>::VARIANT_COUNT);
+    let actual: std::vec::Vec<String> = msgs.into_iter().map(|m| hex(&encode(7, m))).collect();
+    assert_eq!(actual, GOLDEN_FROM_KERNEL, "actual: {actual:#?}");
+}
+
+#[test]
+fn wire_error_golden_bytes() {
+    let actual: std::vec::Vec<String> = canonical_errors()
+        .into_iter()
+        .map(|e| hex(&encode(7, FromKernel::Error(e))))
+        .collect();
+    assert_eq!(actual, GOLDEN_ERRORS, "actual: {actual:#?}");
+}
+
+#[test]
+fn golden_frames_decode_back() {
+    for m in canonical_to_kernel() {
+        let bytes = encode(7, m.clone());
+        assert_eq!(
+            common::deframe::<ToKernel>(&bytes, &[bytes.len()]),
+            vec![Ok(Frame {
+                request_id: 7,
+                body: m
+            })]
+        );
+    }
+    for m in canonical_from_kernel() {
+        let bytes = encode(7, m.clone());
+        assert_eq!(
+            common::deframe::<FromKernel>(&bytes, &[bytes.len()]),
+            vec![Ok(Frame {
+                request_id: 7,
+                body: m
+            })]
+        );
+    }
+}
