@@ -82,10 +82,8 @@ impl EpisodeResult {
     /// Write as pretty JSON to `dir/result.json` atomically (temporary file, then rename).
     pub fn write(&self, dir: &Path) -> std::io::Result<()> {
         std::fs::create_dir_all(dir)?;
-        let tmp = dir.join(".result.json.tmp");
         let text = serde_json::to_string_pretty(self).map_err(std::io::Error::other)?;
-        std::fs::write(&tmp, text)?;
-        std::fs::rename(&tmp, dir.join("result.json"))
+        crate::atomic_write::write_atomic(&dir.join("result.json"), text.as_bytes())
     }
 }
 
