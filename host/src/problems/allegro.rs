@@ -353,7 +353,13 @@ impl AllegroProblem {
     /// Geometry of finger `i` at joints `vals[..4]` and object pose `vals[4..]`, computed in
     /// 7-wide dual numbers (the expensive kinematics and distance) and lifted into the
     /// caller's wider dual, whose joints start at column `oq` and object pose at `oo`.
-    fn lifted_contact<S: Lift>(&self, i: usize, vals: &[f64; 7], oq: usize, oo: usize) -> Lifted<S> {
+    fn lifted_contact<S: Lift>(
+        &self,
+        i: usize,
+        vals: &[f64; 7],
+        oq: usize,
+        oo: usize,
+    ) -> Lifted<S> {
         let d: [Dual<7>; 7] = seed(vals);
         let c = self.contact(i, &[d[0], d[1], d[2], d[3]], &[d[4], d[5], d[6]]);
         let jac = c.frames.point_jacobian(&c.finger_point);
@@ -622,10 +628,11 @@ impl Problem for AllegroProblem {
             gather(&map10, &mut v10);
             let roll = self.rolling_terms(i, &v14);
             let next = self.next_terms(i, &v10);
-            let put = |out: &mut StepConstraints, r: usize, value: f64, map: &[usize], d: &[f64]| {
-                out.eq[r] = value;
-                scatter(&mut out.jac_eq[r * width..(r + 1) * width], map, d, 1.0);
-            };
+            let put =
+                |out: &mut StepConstraints, r: usize, value: f64, map: &[usize], d: &[f64]| {
+                    out.eq[r] = value;
+                    scatter(&mut out.jac_eq[r * width..(r + 1) * width], map, d, 1.0);
+                };
             put(out, e, next.sdf.v, &map10, &next.sdf.d);
             put(out, e + 1, roll[0].v, &map14, &roll[0].d);
             put(out, e + 2, roll[1].v, &map14, &roll[1].d);
