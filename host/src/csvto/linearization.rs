@@ -5,6 +5,9 @@
 //! Variables are augmented with one squared slack per inequality (`h + ½z² = 0`). The
 //! augmented vector is `[x (H·n) ; z (all slacks, step by step)]`.
 
+// Row/column index loops mirror the block structure of the matrices.
+#![allow(clippy::needless_range_loop)]
+
 use super::blocktri::BlockTriFactor;
 use super::problem::{Problem, StepConstraints};
 
