@@ -5,9 +5,11 @@
 //! - [`fk`]: finger kinematics over a generic scalar, built from the world's hand model;
 //! - [`sdf`]: analytic sphere-to-object signed distances with normals;
 //! - [`allegro`]: the per-mode problem (constraints, costs, bounds);
-//! - [`init`]: the default particle initialisation.
+//! - [`init`]: the default particle initialisation;
+//! - [`contract`]: conversion to and from the `CONTRACTS.md` §2 trajectory layout.
 
 pub mod allegro;
+pub mod contract;
 pub mod dual;
 pub mod fk;
 pub mod init;
