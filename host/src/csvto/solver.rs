@@ -104,6 +104,9 @@ pub fn solve(
         .map(|x| initial_slack(problem, &layout, x))
         .collect();
     let dim = dim_x + layout.n_slack;
+    let mut blocks = vec![vec![0.0; dim * np]; np];
+    let mut scratches: Vec<Vec<f64>> = vec![Vec::new(); np];
+    let mut sum = vec![0.0; dim * np];
     for k in 0..iters {
         let g = gamma(k, iters, settings.anneal_above);
         let evals: Vec<Evaluated> = particles
@@ -115,13 +118,16 @@ pub fn solve(
         let two_over_h = 2.0 / kern.bandwidth;
         // S[:, m] = Σ_n P_n k_nm [γ(−∇J_n) − (2/h)(x_n − x_m)], coordinate-major (dim×N).
         // Each particle's projected block in parallel, then summed in a fixed order so that
-        // the result does not depend on thread scheduling.
-        let blocks: Vec<Vec<f64>> = (0..np)
-            .into_par_iter()
-            .map(|n| {
+        // the result does not depend on thread scheduling. Buffers are reused across
+        // iterations (fresh ones cost page faults and zeroing).
+        blocks
+            .par_iter_mut()
+            .zip(scratches.par_iter_mut())
+            .enumerate()
+            .for_each(|(n, (v, scratch))| {
                 let xn = &particles[n];
                 let gn = &evals[n].grad;
-                let mut v = vec![0.0; dim * np];
+                v.fill(0.0);
                 for m in 0..np {
                     let knm = kern.at(n, m);
                     let xm = &particles[m];
@@ -129,12 +135,9 @@ pub fn solve(
                         v[c * np + m] = knm * (-g * gn[c] - two_over_h * (xn[c] - xm[c]));
                     }
                 }
-                let mut scratch = Vec::new();
-                evals[n].lin.project(&mut v, np, &mut scratch);
-                v
-            })
-            .collect();
-        let mut sum = vec![0.0; dim * np];
+                evals[n].lin.project(v, np, scratch);
+            });
+        sum.fill(0.0);
         for b in &blocks {
             for (a, x) in sum.iter_mut().zip(b) {
                 *a += x;
