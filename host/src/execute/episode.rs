@@ -6,12 +6,13 @@ use std::path::Path;
 use dips_kernel::rng::KernelRng;
 use serde::Serialize;
 
-use super::mode_run::{ModeRun, run_mode};
+use super::mode_run::{ModeRun, hand_state, pose_valid, run_mode};
 use super::settings::ExecSettings;
 use crate::kinematics::HandModel;
 use crate::problems::Mode;
 use crate::scenes::{SceneKind, card};
-use crate::world::{World, WorldError};
+use crate::hand::{Hand, HandError};
+use crate::world::World;
 
 /// Modes per screwdriver episode (sim).
 pub const SCREWDRIVER_MODES: usize = 7;
@@ -95,22 +96,35 @@ pub fn run_episode(
     modes: &[Mode],
     settings: &ExecSettings,
     progress: &mut dyn FnMut(&str),
-) -> Result<EpisodeResult, WorldError> {
-    let hand = HandModel::allegro_v4();
+) -> Result<EpisodeResult, HandError> {
     let mut world = World::new(task);
+    run_episode_on(&mut world, method, seed, modes, settings, progress)
+}
+
+/// Run `modes` on `hand` from its current state.
+pub fn run_episode_on<H: Hand + ?Sized>(
+    hand: &mut H,
+    method: &str,
+    seed: u64,
+    modes: &[Mode],
+    settings: &ExecSettings,
+    progress: &mut dyn FnMut(&str),
+) -> Result<EpisodeResult, HandError> {
+    let task = hand.scene();
+    let model = HandModel::allegro_v4();
     let mut rng = KernelRng::seed_from_u64(seed);
-    let start = world.state();
+    let start = hand_state(hand);
     let mut runs = Vec::with_capacity(modes.len());
-    let mut valid = world.valid();
+    let mut valid = pose_valid(task, &hand.object_pose());
     let mut step_s = Vec::new();
     for (i, &mode) in modes.iter().enumerate() {
         progress(&format!("mode {}/{}: {}", i + 1, modes.len(), mode.name()));
-        let run = run_mode(&mut world, &hand, mode, settings, None, &mut rng, progress)?;
+        let run = run_mode(hand, &model, mode, settings, None, &mut rng, progress)?;
         valid &= run.steps.iter().all(|s| s.valid);
         step_s.extend(run.solve_times());
         runs.push(run);
     }
-    let end = world.state();
+    let end = hand_state(hand);
     let nq = end.len() - 3;
     let (final_yaw, final_distance_m, final_dy_m) = match task {
         SceneKind::Screwdriver => (Some(end[nq + 2]), None, None),

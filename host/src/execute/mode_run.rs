@@ -12,7 +12,8 @@ use crate::kinematics::HandModel;
 use crate::problems::init::default_particles;
 use crate::problems::{AllegroProblem, Mode, ProblemSpec};
 use crate::scenes::SceneKind;
-use crate::world::{World, WorldError};
+use crate::hand::{Hand, HandError, ObjectPose};
+use crate::scenes::{card, screwdriver};
 
 /// Screwdriver turn goal per mode (rad, clockwise negative).
 pub const TURN_GOAL: f64 = -PI / 6.0;
@@ -48,7 +49,8 @@ pub struct StepLog {
     pub planned_state: Vec<f64>,
     /// The world state after the step.
     pub state: Vec<f64>,
-    /// World signed distance of every task finger after the step (m).
+    /// Signed distance of every task finger's tip sphere to the object after the step (m),
+    /// from the measured joints and object pose and the planner's analytic geometry.
     pub tip_sdf: Vec<f64>,
     /// Whether the object is still valid.
     pub valid: bool,
@@ -101,6 +103,32 @@ impl ModeRun {
     }
 }
 
+/// The raw state row `[task joints, object coordinates]` of a hand.
+pub fn hand_state<H: Hand + ?Sized>(hand: &H) -> Vec<f64> {
+    let joints = hand.joint_positions();
+    let mut s: Vec<f64> = hand
+        .scene()
+        .task_fingers()
+        .iter()
+        .flat_map(|f| joints[f.index()])
+        .collect();
+    s.extend_from_slice(&hand.object_pose().coords);
+    s
+}
+
+/// Task validity from an object pose: the screwdriver's cap within 2 cm of nominal, the card
+/// lying flat on the table (centre within 5 mm of its resting height).
+pub fn pose_valid(scene: SceneKind, pose: &ObjectPose) -> bool {
+    match scene {
+        SceneKind::Screwdriver => {
+            screwdriver::is_valid(&pose.pose.rotation.to_rotation_matrix())
+        }
+        SceneKind::Card => {
+            (pose.pose.translation.vector.z - card::INITIAL_CENTER[2]).abs() <= 5e-3
+        }
+    }
+}
+
 /// Drop the first `rows` rows of every particle (the executed steps).
 fn shift(particles: &mut [Vec<f64>], n: usize) {
     for p in particles.iter_mut() {
@@ -108,20 +136,21 @@ fn shift(particles: &mut [Vec<f64>], n: usize) {
     }
 }
 
-/// Execute `mode` in `world` closed-loop: warm-up solve on `initial` particles (or the
-/// default initialisation), then a re-solve at every step with the shrinking horizon.
-/// `progress` receives one line per step.
-pub fn run_mode(
-    world: &mut World,
-    hand: &HandModel,
+/// Execute `mode` on `hand` (the quasi-static world, a recorder around it, or a real hand)
+/// closed-loop: warm-up solve on `initial` particles (or the default initialisation), then a
+/// re-solve at every step with the shrinking horizon, commanding `q + Δq₀` of the best
+/// particle. `progress` receives one line per step.
+pub fn run_mode<H: Hand + ?Sized>(
+    hand: &mut H,
+    model: &HandModel,
     mode: Mode,
     settings: &ExecSettings,
     initial: Option<Vec<Vec<f64>>>,
     rng: &mut KernelRng,
     progress: &mut dyn FnMut(&str),
-) -> Result<ModeRun, WorldError> {
-    let task: SceneKind = world.scene();
-    let start_state = world.state();
+) -> Result<ModeRun, HandError> {
+    let task: SceneKind = hand.scene();
+    let start_state = hand_state(hand);
     let goal = mode_goal(mode, &start_state);
     let h = settings.horizon;
     let mut spec = ProblemSpec {
@@ -131,7 +160,7 @@ pub fn run_mode(
         start: start_state.clone(),
         goal,
     };
-    let mut problem = AllegroProblem::new(hand, &spec);
+    let mut problem = AllegroProblem::new(model, &spec);
     let mut particles = match initial {
         Some(p) => p,
         None => default_particles(&problem, mode, settings.particles, rng),
@@ -144,9 +173,9 @@ pub fn run_mode(
             settings.warmup_iters
         } else {
             shift(&mut particles, n);
-            spec.start = world.state();
+            spec.start = hand_state(hand);
             spec.horizon = h - k;
-            problem = AllegroProblem::new(hand, &spec);
+            problem = AllegroProblem::new(model, &spec);
             settings.online_iters
         };
         let t0 = Instant::now();
@@ -157,10 +186,22 @@ pub fn run_mode(
             .map(|c| best[problem.dq_col(c / 4, c % 4)])
             .collect();
         let planned_state = problem.to_world_units(&best[..problem.state_dim()]);
-        world.step_action(&dq)?;
-        let state = world.state();
-        let tip_sdf = world.tip_distances();
-        let valid = world.valid();
+        let mut targets = hand.joint_positions();
+        for (i, f) in task.task_fingers().iter().enumerate() {
+            for j in 0..4 {
+                targets[f.index()][j] += dq[4 * i + j];
+            }
+        }
+        hand.command(&targets)?;
+        let state = hand_state(hand);
+        let o = [state[nq], state[nq + 1], state[nq + 2]];
+        let tip_sdf = (0..problem.fingers())
+            .map(|i| {
+                let q = [state[4 * i], state[4 * i + 1], state[4 * i + 2], state[4 * i + 3]];
+                problem.finger_sdf(i, &q, &o)
+            })
+            .collect::<Vec<_>>();
+        let valid = pose_valid(task, &hand.object_pose());
         progress(&format!(
             "{} step {}/{}: solve {:.2}s ({} it), eq {:.1e}, object {:?}, tip sdf {:?}{}",
             mode.name(),
@@ -191,7 +232,7 @@ pub fn run_mode(
             valid,
         });
     }
-    let end_state = world.state();
+    let end_state = hand_state(hand);
     let o = [end_state[nq], end_state[nq + 1], end_state[nq + 2]];
     let regrasp_target_distance = (0..problem.fingers())
         .filter(|&i| !problem.in_contact(i))
