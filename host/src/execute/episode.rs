@@ -8,10 +8,10 @@ use serde::Serialize;
 
 use super::mode_run::{ModeRun, hand_state, pose_valid, run_mode};
 use super::settings::ExecSettings;
+use crate::hand::{Hand, HandError};
 use crate::kinematics::HandModel;
 use crate::problems::Mode;
 use crate::scenes::{SceneKind, card};
-use crate::hand::{Hand, HandError};
 use crate::world::World;
 
 /// Modes per screwdriver episode (sim).

@@ -8,11 +8,11 @@ use serde::Serialize;
 
 use super::settings::ExecSettings;
 use crate::csvto::{Problem, solve};
+use crate::hand::{Hand, HandError, ObjectPose};
 use crate::kinematics::HandModel;
 use crate::problems::init::default_particles;
 use crate::problems::{AllegroProblem, Mode, ProblemSpec};
 use crate::scenes::SceneKind;
-use crate::hand::{Hand, HandError, ObjectPose};
 use crate::scenes::{card, screwdriver};
 
 /// Screwdriver turn goal per mode (rad, clockwise negative).
@@ -120,12 +120,8 @@ pub fn hand_state<H: Hand + ?Sized>(hand: &H) -> Vec<f64> {
 /// lying flat on the table (centre within 5 mm of its resting height).
 pub fn pose_valid(scene: SceneKind, pose: &ObjectPose) -> bool {
     match scene {
-        SceneKind::Screwdriver => {
-            screwdriver::is_valid(&pose.pose.rotation.to_rotation_matrix())
-        }
-        SceneKind::Card => {
-            (pose.pose.translation.vector.z - card::INITIAL_CENTER[2]).abs() <= 5e-3
-        }
+        SceneKind::Screwdriver => screwdriver::is_valid(&pose.pose.rotation.to_rotation_matrix()),
+        SceneKind::Card => (pose.pose.translation.vector.z - card::INITIAL_CENTER[2]).abs() <= 5e-3,
     }
 }
 
@@ -197,7 +193,12 @@ pub fn run_mode<H: Hand + ?Sized>(
         let o = [state[nq], state[nq + 1], state[nq + 2]];
         let tip_sdf = (0..problem.fingers())
             .map(|i| {
-                let q = [state[4 * i], state[4 * i + 1], state[4 * i + 2], state[4 * i + 3]];
+                let q = [
+                    state[4 * i],
+                    state[4 * i + 1],
+                    state[4 * i + 2],
+                    state[4 * i + 3],
+                ];
                 problem.finger_sdf(i, &q, &o)
             })
             .collect::<Vec<_>>();
