@@ -177,3 +177,47 @@ fn prior_sequences_follow_the_task_priors() {
         assert!(c.iter().all(|m| m.task() == SceneKind::Card));
     }
 }
+
+#[test]
+fn given_initial_particles_of_the_wrong_size_are_a_typed_error() {
+    use dips_host::execute::ExecError;
+    let hand = HandModel::allegro_v4();
+    let mut world = World::new(SceneKind::Screwdriver);
+    let settings = ExecSettings::for_task(SceneKind::Screwdriver);
+    let mut rng = KernelRng::seed_from_u64(0);
+    let bad = vec![vec![0.0; 12 * 36], vec![0.0; 5]];
+    let err = run_mode(
+        &mut world,
+        &hand,
+        Mode::Turn,
+        &settings,
+        Some(bad),
+        &mut rng,
+        &mut |_| {},
+    )
+    .expect_err("wrong particle size must be rejected");
+    assert!(
+        matches!(
+            err,
+            ExecError::InitialParticles {
+                index: 1,
+                got: 5,
+                expected: 432,
+                ..
+            }
+        ),
+        "{err}"
+    );
+    assert!(matches!(
+        run_mode(
+            &mut world,
+            &hand,
+            Mode::Turn,
+            &settings,
+            Some(vec![]),
+            &mut rng,
+            &mut |_| {}
+        ),
+        Err(ExecError::NoParticles)
+    ));
+}

@@ -61,7 +61,7 @@ pub fn run(args: CsvtoBenchArgs) -> anyhow::Result<()> {
         goal: mode_goal(Mode::Turn, &start),
         start,
     };
-    let problem = AllegroProblem::new(&hand, &spec);
+    let problem = AllegroProblem::new(&hand, &spec)?;
     let mut rng = KernelRng::seed_from_u64(args.seed);
     let mut particles = default_particles(&problem, Mode::Turn, settings.particles, &mut rng);
     let t0 = Instant::now();

@@ -6,9 +6,9 @@ use std::path::Path;
 use dips_kernel::rng::KernelRng;
 use serde::Serialize;
 
-use super::mode_run::{ModeRun, hand_state, pose_valid, run_mode};
+use super::mode_run::{ExecError, ModeRun, hand_state, pose_valid, run_mode};
 use super::settings::ExecSettings;
-use crate::hand::{Hand, HandError};
+use crate::hand::Hand;
 use crate::kinematics::HandModel;
 use crate::problems::Mode;
 use crate::scenes::{SceneKind, card};
@@ -96,7 +96,7 @@ pub fn run_episode(
     modes: &[Mode],
     settings: &ExecSettings,
     progress: &mut dyn FnMut(&str),
-) -> Result<EpisodeResult, HandError> {
+) -> Result<EpisodeResult, ExecError> {
     let mut world = World::new(task);
     run_episode_on(&mut world, method, seed, modes, settings, progress)
 }
@@ -109,7 +109,7 @@ pub fn run_episode_on<H: Hand + ?Sized>(
     modes: &[Mode],
     settings: &ExecSettings,
     progress: &mut dyn FnMut(&str),
-) -> Result<EpisodeResult, HandError> {
+) -> Result<EpisodeResult, ExecError> {
     let task = hand.scene();
     let model = HandModel::allegro_v4();
     let mut rng = KernelRng::seed_from_u64(seed);

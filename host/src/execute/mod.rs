@@ -11,5 +11,5 @@ pub mod mode_run;
 pub mod settings;
 
 pub use episode::{EpisodeResult, run_episode, run_episode_on, sample_prior_sequence};
-pub use mode_run::{ModeRun, StepLog, hand_state, mode_goal, pose_valid, run_mode};
+pub use mode_run::{ExecError, ModeRun, StepLog, hand_state, mode_goal, pose_valid, run_mode};
 pub use settings::ExecSettings;

@@ -11,7 +11,7 @@ use crate::csvto::{Problem, solve};
 use crate::hand::{Hand, HandError, ObjectPose};
 use crate::kinematics::HandModel;
 use crate::problems::init::default_particles;
-use crate::problems::{AllegroProblem, Mode, ProblemSpec};
+use crate::problems::{AllegroProblem, Mode, ProblemError, ProblemSpec};
 use crate::scenes::SceneKind;
 use crate::scenes::{card, screwdriver};
 
@@ -30,6 +30,39 @@ pub fn mode_goal(mode: Mode, start: &[f64]) -> [f64; 3] {
         Mode::CardIndex | Mode::CardMiddle | Mode::CardBoth => [0.0, o[1] + CARD_PUSH_GOAL, 0.0],
         Mode::CardRegrasp => [o[0], o[1], o[2]],
     }
+}
+
+/// Errors from closed-loop execution.
+#[derive(Debug, thiserror::Error)]
+pub enum ExecError {
+    /// The hand (or world) failed a step.
+    #[error(transparent)]
+    Hand(#[from] HandError),
+    /// The problem could not be built from the measured state.
+    #[error(transparent)]
+    Problem(#[from] ProblemError),
+    /// Given initial particles do not fit the mode's problem.
+    #[error(
+        "initial particle {index} has {got} values; the {mode} problem needs {expected} \
+         ({horizon} rows of {row})"
+    )]
+    InitialParticles {
+        /// Which particle.
+        index: usize,
+        /// Its length.
+        got: usize,
+        /// Expected length.
+        expected: usize,
+        /// Mode name.
+        mode: &'static str,
+        /// Rows.
+        horizon: usize,
+        /// Row width.
+        row: usize,
+    },
+    /// No initial particles were given.
+    #[error("no initial particles")]
+    NoParticles,
 }
 
 /// What one executed step did.
@@ -144,7 +177,7 @@ pub fn run_mode<H: Hand + ?Sized>(
     initial: Option<Vec<Vec<f64>>>,
     rng: &mut KernelRng,
     progress: &mut dyn FnMut(&str),
-) -> Result<ModeRun, HandError> {
+) -> Result<ModeRun, ExecError> {
     let task: SceneKind = hand.scene();
     let start_state = hand_state(hand);
     let goal = mode_goal(mode, &start_state);
@@ -156,12 +189,27 @@ pub fn run_mode<H: Hand + ?Sized>(
         start: start_state.clone(),
         goal,
     };
-    let mut problem = AllegroProblem::new(model, &spec);
+    let mut problem = AllegroProblem::new(model, &spec)?;
+    let n = problem.row_dim();
     let mut particles = match initial {
-        Some(p) => p,
+        Some(p) => {
+            if p.is_empty() {
+                return Err(ExecError::NoParticles);
+            }
+            if let Some((index, bad)) = p.iter().enumerate().find(|(_, x)| x.len() != h * n) {
+                return Err(ExecError::InitialParticles {
+                    index,
+                    got: bad.len(),
+                    expected: h * n,
+                    mode: mode.name(),
+                    horizon: h,
+                    row: n,
+                });
+            }
+            p
+        }
         None => default_particles(&problem, mode, settings.particles, rng),
     };
-    let n = problem.row_dim();
     let nq = 4 * problem.fingers();
     let mut steps = Vec::with_capacity(h);
     for k in 0..h {
@@ -171,7 +219,7 @@ pub fn run_mode<H: Hand + ?Sized>(
             shift(&mut particles, n);
             spec.start = hand_state(hand);
             spec.horizon = h - k;
-            problem = AllegroProblem::new(model, &spec);
+            problem = AllegroProblem::new(model, &spec)?;
             settings.online_iters
         };
         let t0 = Instant::now();

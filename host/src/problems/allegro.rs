@@ -86,6 +86,40 @@ pub struct ProblemSpec {
     pub goal: [f64; 3],
 }
 
+/// A problem specification that cannot be built.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum ProblemError {
+    /// The mode belongs to another task.
+    #[error("contact mode `{mode}` is not a mode of the {task} task")]
+    ModeTask {
+        /// Mode name.
+        mode: &'static str,
+        /// Task name.
+        task: &'static str,
+    },
+    /// The start state has the wrong length.
+    #[error("start state has {got} values, the {task} task needs {expected}")]
+    StartLength {
+        /// Task name.
+        task: &'static str,
+        /// Expected length.
+        expected: usize,
+        /// Given length.
+        got: usize,
+    },
+    /// The horizon is zero.
+    #[error("the horizon must be at least one step")]
+    ZeroHorizon,
+    /// A start or goal value is NaN or infinite.
+    #[error("{what} value {index} is not finite")]
+    NotFinite {
+        /// `start` or `goal`.
+        what: &'static str,
+        /// Index in it.
+        index: usize,
+    },
+}
+
 /// The multi-finger contact problem.
 #[derive(Debug, Clone)]
 pub struct AllegroProblem {
@@ -182,17 +216,39 @@ struct NextTerms {
 
 impl AllegroProblem {
     /// Build the problem for `spec` with the hand `hand`.
-    pub fn new(hand: &HandModel, spec: &ProblemSpec) -> Self {
+    pub fn new(hand: &HandModel, spec: &ProblemSpec) -> Result<Self, ProblemError> {
         let task = spec.task;
         let contact = spec.mode.contacts().to_vec();
         let fingers = task.task_fingers();
         let nf = fingers.len();
-        assert_eq!(contact.len(), nf, "mode does not belong to the task");
-        assert_eq!(
-            spec.start.len(),
-            4 * nf + 3,
-            "start state has the wrong length"
-        );
+        if spec.mode.task() != task {
+            return Err(ProblemError::ModeTask {
+                mode: spec.mode.name(),
+                task: task.name(),
+            });
+        }
+        if spec.start.len() != 4 * nf + 3 {
+            return Err(ProblemError::StartLength {
+                task: task.name(),
+                expected: 4 * nf + 3,
+                got: spec.start.len(),
+            });
+        }
+        if spec.horizon == 0 {
+            return Err(ProblemError::ZeroHorizon);
+        }
+        if let Some(index) = spec.start.iter().position(|v| !v.is_finite()) {
+            return Err(ProblemError::NotFinite {
+                what: "start",
+                index,
+            });
+        }
+        if let Some(index) = spec.goal.iter().position(|v| !v.is_finite()) {
+            return Err(ProblemError::NotFinite {
+                what: "goal",
+                index,
+            });
+        }
         let mut slot = Vec::with_capacity(nf);
         let mut nc = 0;
         for &c in &contact {
@@ -268,7 +324,7 @@ impl AllegroProblem {
             start[4 * nf + k] /= units[k];
             goal[k] /= units[k];
         }
-        Self {
+        Ok(Self {
             task,
             contact,
             nf,
@@ -288,7 +344,7 @@ impl AllegroProblem {
             joint_hi,
             dq_bound,
             goal_weights,
-        }
+        })
     }
 
     /// The task.

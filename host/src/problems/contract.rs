@@ -168,7 +168,7 @@ mod tests {
             start,
             goal: [0.0, 0.0, yaw],
         };
-        AllegroProblem::new(&HandModel::allegro_v4(), &spec)
+        AllegroProblem::new(&HandModel::allegro_v4(), &spec).expect("valid spec")
     }
 
     #[test]

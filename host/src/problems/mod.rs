@@ -16,7 +16,7 @@ pub mod init;
 pub mod mode;
 pub mod sdf;
 
-pub use allegro::{AllegroProblem, ProblemSpec};
+pub use allegro::{AllegroProblem, ProblemError, ProblemSpec};
 pub use mode::Mode;
 
 #[cfg(test)]

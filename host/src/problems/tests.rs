@@ -59,7 +59,7 @@ fn constraint_jacobians_match_finite_differences() {
     .iter()
     .enumerate()
     {
-        let p = AllegroProblem::new(&hand, &spec(mode, 3));
+        let p = AllegroProblem::new(&hand, &spec(mode, 3)).expect("valid spec");
         let x = perturbed(&p, mode, 7 + m as u64);
         let (n, ds) = (p.row_dim(), p.state_dim());
         let width = ds + n;
@@ -108,7 +108,7 @@ fn cost_gradient_matches_finite_differences() {
         .iter()
         .enumerate()
     {
-        let p = AllegroProblem::new(&hand, &spec(mode, 3));
+        let p = AllegroProblem::new(&hand, &spec(mode, 3)).expect("valid spec");
         let x = perturbed(&p, mode, 30 + m as u64);
         let mut g = vec![0.0; x.len()];
         p.cost(&x, &mut g);
@@ -132,12 +132,12 @@ fn cost_gradient_matches_finite_differences() {
 #[test]
 fn counts_match_the_spec_bookkeeping() {
     let hand = HandModel::allegro_v4();
-    let p = AllegroProblem::new(&hand, &spec(Mode::Turn, 12));
+    let p = AllegroProblem::new(&hand, &spec(Mode::Turn, 12)).expect("valid spec");
     // 3 contact fingers: 7 each + 3 torques; 8 friction faces + min force each.
     assert_eq!(p.n_eq(0), 24);
     assert_eq!(p.n_ineq(0), 27);
     assert_eq!(p.row_dim(), 15 + 12 + 9);
-    let p = AllegroProblem::new(&hand, &spec(Mode::IndexRegrasp, 12));
+    let p = AllegroProblem::new(&hand, &spec(Mode::IndexRegrasp, 12)).expect("valid spec");
     assert_eq!(p.n_eq(0), 14 + 3 + 4);
     assert_eq!(p.n_eq(11), 14 + 3 + 4 + 1);
     assert_eq!(p.n_ineq(0), 18 + 1);
@@ -149,7 +149,7 @@ fn open_loop_turn_solve_is_feasible_and_turns() {
     let hand = HandModel::allegro_v4();
     let mut s = spec(Mode::Turn, 12);
     s.goal = [0.0, 0.0, -std::f64::consts::PI / 6.0];
-    let p = AllegroProblem::new(&hand, &s);
+    let p = AllegroProblem::new(&hand, &s).expect("valid spec");
     let mut rng = KernelRng::seed_from_u64(3);
     let mut parts = default_particles(&p, Mode::Turn, 8, &mut rng);
     let rep = solve(&p, &mut parts, 100, &CsvtoSettings::default());
@@ -157,4 +157,40 @@ fn open_loop_turn_solve_is_feasible_and_turns() {
     let yaw_end = parts[0][11 * n + 14];
     assert!(rep.max_eq_violation[0] < 5e-3, "{rep:?}");
     assert!(yaw_end < -0.2, "planned yaw {yaw_end}");
+}
+
+#[test]
+fn bad_specs_are_typed_errors() {
+    use super::allegro::ProblemError;
+    let hand = HandModel::allegro_v4();
+    let mut s = spec(Mode::Turn, 12);
+    s.task = SceneKind::Card;
+    assert!(matches!(
+        AllegroProblem::new(&hand, &s),
+        Err(ProblemError::ModeTask { .. })
+    ));
+    let mut s = spec(Mode::Turn, 12);
+    s.start.pop();
+    assert_eq!(
+        AllegroProblem::new(&hand, &s).err(),
+        Some(ProblemError::StartLength {
+            task: "screwdriver",
+            expected: 15,
+            got: 14
+        })
+    );
+    let s = spec(Mode::Turn, 0);
+    assert_eq!(
+        AllegroProblem::new(&hand, &s).err(),
+        Some(ProblemError::ZeroHorizon)
+    );
+    let mut s = spec(Mode::Turn, 12);
+    s.goal[2] = f64::NAN;
+    assert!(matches!(
+        AllegroProblem::new(&hand, &s),
+        Err(ProblemError::NotFinite {
+            what: "goal",
+            index: 2
+        })
+    ));
 }
