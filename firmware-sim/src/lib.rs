@@ -12,10 +12,11 @@
 
 use std::io::{self, Read, Write};
 
+use dips_kernel::wire_convert::PlanInputs;
 use dips_wire::{
     Feed, Frame, FrameAccumulator, FromKernel, Hello, HelloAck, MAX_ENCODED_FRAME_LEN,
     MODEL_CHUNK_LEN, ModelAssembler, ModelRole, NO_REQUEST_ID, PROTOCOL_VERSION, PlanRequest,
-    RequestField, SCHEMA_KEY, Task, ToKernel, UploadError, WireError, decode_frame, encode_frame,
+    SCHEMA_KEY, ToKernel, UploadError, WireError, decode_frame, encode_frame,
 };
 
 /// Size of each static model buffer of the `dips-firmware-sim` binary, in bytes.
@@ -136,23 +137,15 @@ impl<'m> Firmware<'m> {
     }
 
     fn plan(&mut self, plan: &PlanRequest) -> Result<FromKernel, WireError> {
-        let state_dim = match plan.task {
-            Task::Screwdriver => 16,
-            Task::Card => 12,
-        };
-        let invalid = |field| WireError::InvalidRequest { field };
-        if plan.start_state.len() != state_dim || plan.start_state.iter().any(|v| !v.is_finite()) {
-            return Err(invalid(RequestField::StartState));
-        }
-        if !plan.goal.is_finite() {
-            return Err(invalid(RequestField::Goal));
-        }
+        // The kernel's own request checks (start state, goal, settings, previous mode).
+        PlanInputs::from_request(plan).map_err(|field| WireError::InvalidRequest { field })?;
         for role in [ModelRole::Denoiser, ModelRole::Discriminator] {
             if self.model(role).is_none() {
                 return Err(WireError::ModelNotLoaded { role });
             }
         }
-        // The kernel planner and model engines are not wired into the firmware yet.
+        // The kernel's network interpreter is not wired into the firmware yet; once it is,
+        // `dips_kernel::wire_convert::plan_request` answers here through the model adapters.
         Err(WireError::PlannerUnavailable)
     }
 }

@@ -282,7 +282,14 @@ fn invalid_plan_fields_are_named() {
     input.extend(frame_bytes(2, ToKernel::PlanRequest(bad.clone())));
     bad.start_state.push(0.0).unwrap();
     bad.goal = f32::NAN;
-    input.extend(frame_bytes(3, ToKernel::PlanRequest(bad)));
+    input.extend(frame_bytes(3, ToKernel::PlanRequest(bad.clone())));
+    bad.goal = -1.0;
+    bad.settings.k = 0;
+    input.extend(frame_bytes(4, ToKernel::PlanRequest(bad.clone())));
+    bad.settings.k = 16;
+    // The card has modes 0..=3.
+    bad.previous_mode = Some(4);
+    input.extend(frame_bytes(5, ToKernel::PlanRequest(bad)));
     let (out, _) = run(&input, 16, false);
     assert_eq!(
         out[1].body,
@@ -294,6 +301,18 @@ fn invalid_plan_fields_are_named() {
         out[2].body,
         FromKernel::Error(WireError::InvalidRequest {
             field: RequestField::Goal
+        })
+    );
+    assert_eq!(
+        out[3].body,
+        FromKernel::Error(WireError::InvalidRequest {
+            field: RequestField::Settings
+        })
+    );
+    assert_eq!(
+        out[4].body,
+        FromKernel::Error(WireError::InvalidRequest {
+            field: RequestField::PreviousMode
         })
     );
 }

@@ -229,21 +229,26 @@ impl HandModel {
         if !(file.tip_radius.is_finite() && file.tip_radius > 0.0) {
             return Err(KinematicsError::BadRadius(file.tip_radius));
         }
-        let mut fingers = Vec::with_capacity(4);
-        for ff in &file.fingers {
+        let files: &[FingerFile; 4] = file
+            .fingers
+            .as_slice()
+            .try_into()
+            .map_err(|_| KinematicsError::FingerOrder(names.clone()))?;
+        // Validate everything first, so the conversion below cannot fail.
+        for ff in files {
             check_finite(&ff.tip_center, || format!("{} tip_center", ff.name))?;
-            let mut joints = Vec::with_capacity(4);
             for (j, jf) in ff.joints.iter().enumerate() {
                 let what = || format!("{} joint {j}", ff.name);
                 check_finite(&jf.origin_xyz, what)?;
                 check_finite(&jf.origin_rpy, what)?;
                 check_finite(&jf.axis, what)?;
                 check_finite(&jf.limits, what)?;
-                let axis = Vector3::from(jf.axis);
-                let axis = Unit::try_new(axis, 1e-9).ok_or_else(|| KinematicsError::ZeroAxis {
-                    finger: ff.name.clone(),
-                    joint: j,
-                })?;
+                if Vector3::from(jf.axis).norm() <= 1e-9 {
+                    return Err(KinematicsError::ZeroAxis {
+                        finger: ff.name.clone(),
+                        joint: j,
+                    });
+                }
                 if jf.limits[0] > jf.limits[1] {
                     return Err(KinematicsError::BadLimits {
                         finger: ff.name.clone(),
@@ -252,23 +257,20 @@ impl HandModel {
                         upper: jf.limits[1],
                     });
                 }
-                joints.push(JointSpec {
-                    origin: Isometry3::from_parts(
-                        Translation3::from(Vector3::from(jf.origin_xyz)),
-                        rpy_to_rotation(jf.origin_rpy),
-                    ),
-                    axis,
-                    lower: jf.limits[0],
-                    upper: jf.limits[1],
-                });
             }
-            let joints: [JointSpec; 4] = joints.try_into().expect("exactly four joints");
-            fingers.push(FingerSpec {
-                joints,
-                tip_center: Vector3::from(ff.tip_center),
-            });
         }
-        let fingers: [FingerSpec; 4] = fingers.try_into().expect("exactly four fingers");
+        let fingers = files.each_ref().map(|ff| FingerSpec {
+            joints: ff.joints.each_ref().map(|jf| JointSpec {
+                origin: Isometry3::from_parts(
+                    Translation3::from(Vector3::from(jf.origin_xyz)),
+                    rpy_to_rotation(jf.origin_rpy),
+                ),
+                axis: Unit::new_normalize(Vector3::from(jf.axis)),
+                lower: jf.limits[0],
+                upper: jf.limits[1],
+            }),
+            tip_center: Vector3::from(ff.tip_center),
+        });
         Ok(HandModel {
             name: file.name,
             tip_radius: file.tip_radius,

@@ -94,3 +94,59 @@ pub trait DiscriminatorEngine {
         p_real: &mut [f32],
     ) -> Result<(), Self::Error>;
 }
+
+/// A mutable reference to an engine is an engine, so adapters can borrow one.
+impl<E: DenoiserEngine + ?Sized> DenoiserEngine for &mut E {
+    type Error = E::Error;
+
+    fn dims(&self) -> ModelDims {
+        (**self).dims()
+    }
+
+    fn normalization(&self) -> Normalization<'_> {
+        (**self).normalization()
+    }
+
+    fn max_batch(&self) -> usize {
+        (**self).max_batch()
+    }
+
+    fn predict_eps(
+        &mut self,
+        batch: usize,
+        x: &[f32],
+        t: &[f32],
+        context: &[f32],
+        cond_mask: &[f32],
+        eps: &mut [f32],
+    ) -> Result<(), Self::Error> {
+        (**self).predict_eps(batch, x, t, context, cond_mask, eps)
+    }
+}
+
+/// A mutable reference to an engine is an engine, so adapters can borrow one.
+impl<E: DiscriminatorEngine + ?Sized> DiscriminatorEngine for &mut E {
+    type Error = E::Error;
+
+    fn dims(&self) -> ModelDims {
+        (**self).dims()
+    }
+
+    fn normalization(&self) -> Normalization<'_> {
+        (**self).normalization()
+    }
+
+    fn max_batch(&self) -> usize {
+        (**self).max_batch()
+    }
+
+    fn p_real(
+        &mut self,
+        batch: usize,
+        x: &[f32],
+        context: &[f32],
+        p_real: &mut [f32],
+    ) -> Result<(), Self::Error> {
+        (**self).p_real(batch, x, context, p_real)
+    }
+}

@@ -13,11 +13,14 @@
 #[cfg(test)]
 extern crate std;
 
+pub mod adapters;
 pub mod budget;
 pub mod diffusion;
 pub mod engine;
 pub mod mode;
+pub mod nn;
 pub mod prior;
 pub mod rng;
 pub mod search;
 pub mod task;
+pub mod wire_convert;

@@ -262,6 +262,80 @@ impl TaskObjective for CardObjective {
     }
 }
 
+/// The objective of either task, chosen at run time (a wire request names its task).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Objective {
+    /// [`ScrewdriverObjective`].
+    Screwdriver(ScrewdriverObjective),
+    /// [`CardObjective`].
+    Card(CardObjective),
+}
+
+impl Objective {
+    /// The objective of `task` for an absolute search goal (screwdriver: yaw in radians; card:
+    /// `y` in metres) from the raw `start` state. `None` when the goal is not finite or the
+    /// start too short.
+    ///
+    /// The screwdriver's start yaw is `atan2(sin, cos)`, known only up to whole turns; it is
+    /// taken on the branch within π of the goal (`reference_yaw = goal + wrap(yaw − goal)`),
+    /// so a host that tracks the unwrapped yaw over many turns can send its goal as is.
+    pub fn for_goal(task: Task, start: &[f32], goal: f32) -> Option<Self> {
+        if !goal.is_finite() {
+            return None;
+        }
+        match task {
+            Task::Screwdriver => {
+                let yaw = ScrewdriverObjective::raw_yaw(start)?;
+                Some(Self::Screwdriver(ScrewdriverObjective {
+                    reference_yaw: goal + wrap_angle(yaw - goal),
+                    goal_yaw: goal,
+                }))
+            }
+            Task::Card => {
+                start.get(CARD.object + 1)?;
+                Some(Self::Card(CardObjective { goal_y: goal }))
+            }
+        }
+    }
+}
+
+impl TaskObjective for Objective {
+    fn accepts(&self, dims: &SegmentDims) -> bool {
+        match self {
+            Self::Screwdriver(o) => o.accepts(dims),
+            Self::Card(o) => o.accepts(dims),
+        }
+    }
+
+    fn segment_cost(&self, mode: ContactMode, dims: &SegmentDims, segment: &[f32]) -> f32 {
+        match self {
+            Self::Screwdriver(o) => o.segment_cost(mode, dims, segment),
+            Self::Card(o) => o.segment_cost(mode, dims, segment),
+        }
+    }
+
+    fn progress(&self, state: &[f32]) -> f32 {
+        match self {
+            Self::Screwdriver(o) => o.progress(state),
+            Self::Card(o) => o.progress(state),
+        }
+    }
+
+    fn terminal_cost(&self, expected_progress: f32) -> f32 {
+        match self {
+            Self::Screwdriver(o) => o.terminal_cost(expected_progress),
+            Self::Card(o) => o.terminal_cost(expected_progress),
+        }
+    }
+
+    fn goal_reached(&self, expected_progress: f32) -> bool {
+        match self {
+            Self::Screwdriver(o) => o.goal_reached(expected_progress),
+            Self::Card(o) => o.goal_reached(expected_progress),
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -31,6 +31,8 @@ pub struct BenchArgs {
 pub enum BenchCommand {
     /// Expansions per second of the A* contact search with a synthetic sampler.
     Search(SearchBenchArgs),
+    /// Median seconds per call of both model engines on one model at one batch.
+    Inference(super::bench_inference::InferenceArgs),
     /// Time of one 1 s action (all sub-steps) in each scene of the quasi-static world.
     Sim(super::bench_sim::BenchSimArgs),
     /// Seconds per online CSVTO step (screwdriver turn, N = 16, 25 iterations, H = 12).
@@ -69,6 +71,7 @@ pub struct SearchBenchArgs {
 pub fn run(args: BenchArgs) -> anyhow::Result<()> {
     match args.command {
         BenchCommand::Search(a) => search(&a),
+        BenchCommand::Inference(a) => super::bench_inference::run(&a),
         BenchCommand::Sim(a) => super::bench_sim::main(a),
         BenchCommand::Csvto(a) => super::bench_csvto::run(a),
     }

@@ -1,12 +1,14 @@
 //! The `dips` command line (`CONTRACTS.md` §5). Each command group lives in its own module.
 
+use clap::{Parser, Subcommand};
+
 pub mod bench;
 pub mod bench_csvto;
+pub mod bench_inference;
 pub mod bench_sim;
 pub mod episode;
+pub mod model;
 pub mod sim;
-
-use clap::{Parser, Subcommand};
 
 /// DIPS: diffusion-informed probabilistic contact search for multi-finger manipulation.
 #[derive(Debug, Parser)]
@@ -20,6 +22,8 @@ pub struct Cli {
 /// Top-level commands.
 #[derive(Debug, Subcommand)]
 pub enum Command {
+    /// Validate, run and lower contract-v1 models.
+    Model(model::ModelArgs),
     /// Benchmarks that print JSON figures.
     Bench(bench::BenchArgs),
     /// Quasi-static test world: run actions, draw scenes and trajectories.
@@ -32,6 +36,7 @@ pub enum Command {
 pub fn main() -> anyhow::Result<()> {
     let cli = Cli::parse();
     match cli.command {
+        Command::Model(args) => model::run(args),
         Command::Bench(args) => bench::run(args),
         Command::Sim(args) => sim::main(args),
         Command::Episode(args) => episode::run(args),

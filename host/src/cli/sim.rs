@@ -10,7 +10,8 @@
 //!
 //! `dips sim render --scene S [--trajectory OUT.json] [--step K] --out FILE.svg|FILE.png`
 //! draws the scene's initial state, or state K (default: last) of a trajectory with its
-//! contacts and forces.
+//! contacts and forces (green, 5 mm per N, exerted by the finger on the part) and the paths of
+//! the fingertip centres and of the object's reference point over the whole trajectory.
 
 use std::path::{Path, PathBuf};
 
@@ -354,6 +355,7 @@ fn render_cmd(args: &RenderArgs) -> Result<(), SimCliError> {
     let scene = parse_scene(&args.scene)?;
     let mut world = World::new(scene);
     let mut contacts = Vec::new();
+    let mut paths = Vec::new();
     let mut heading = format!("{} initial state", scene.name());
     if let Some(path) = &args.trajectory {
         let p = path.display().to_string();
@@ -380,6 +382,7 @@ fn render_cmd(args: &RenderArgs) -> Result<(), SimCliError> {
             message: e.to_string(),
         })?;
         contacts = traj.contacts.get(step).cloned().unwrap_or_default();
+        paths = render::trajectory_paths(&world, &traj.states);
         heading = format!(
             "{} state {step}/{}: {:?}  valid={}",
             scene.name(),
@@ -391,7 +394,7 @@ fn render_cmd(args: &RenderArgs) -> Result<(), SimCliError> {
             traj.valid.get(step).copied().unwrap_or(true)
         );
     }
-    let drawing = render::draw(&world, &contacts, &heading);
+    let drawing = render::draw_with_paths(&world, &contacts, &paths, &heading);
     render::write(&drawing, &args.out, args.size).map_err(anyhow::Error::from)?;
     Ok(())
 }

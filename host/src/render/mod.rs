@@ -99,12 +99,49 @@ const OBJECT: Rgb = [200, 120, 20];
 const TABLE: Rgb = [120, 120, 120];
 const CONTACT: Rgb = [210, 20, 20];
 const FORCE: Rgb = [20, 150, 40];
+const PATH: Rgb = [170, 60, 170];
 
 /// Metres of arrow per newton of contact force.
 pub const FORCE_SCALE: f64 = 0.005;
 
+/// Paths of the task fingertip centres and of the object's reference point (screwdriver cap
+/// origin, card centre) over a sequence of states of `world`'s scene.
+pub fn trajectory_paths(world: &World, states: &[Vec<f64>]) -> Vec<Vec<Point3<f64>>> {
+    let mut w = world.clone();
+    let fingers = world.scene().task_fingers();
+    let mut paths = vec![Vec::with_capacity(states.len()); fingers.len() + 1];
+    for s in states {
+        if w.set_state(s).is_err() {
+            continue;
+        }
+        let tips = w.tip_centers();
+        for (k, f) in fingers.iter().enumerate() {
+            paths[k].push(tips[f.index()]);
+        }
+        let pose = w.object().pose();
+        let reference = match world.scene() {
+            crate::scenes::SceneKind::Screwdriver => {
+                pose * Point3::from(crate::scenes::screwdriver::CAP_ORIGIN)
+            }
+            crate::scenes::SceneKind::Card => pose * Point3::origin(),
+        };
+        paths[fingers.len()].push(reference);
+    }
+    paths
+}
+
 /// Draw a world state with the given contacts (e.g. from a trajectory file).
 pub fn draw(world: &World, contacts: &[ContactReport], heading: &str) -> Drawing {
+    draw_with_paths(world, contacts, &[], heading)
+}
+
+/// Like [`draw`], plus polylines (e.g. [`trajectory_paths`]) with a dot at each sample.
+pub fn draw_with_paths(
+    world: &World,
+    contacts: &[ContactReport],
+    paths: &[Vec<Point3<f64>>],
+    heading: &str,
+) -> Drawing {
     let views: [(&str, [usize; 2]); 3] = [
         ("front (x, z)", [0, 2]),
         ("side (y, z)", [1, 2]),
@@ -117,6 +154,24 @@ pub fn draw(world: &World, contacts: &[ContactReport], heading: &str) -> Drawing
             let mut prims = Vec::new();
             object_prims(world, &proj, &mut prims);
             hand_prims(world, &proj, &mut prims);
+            for path in paths {
+                for pair in path.windows(2) {
+                    prims.push(Prim::Line {
+                        a: proj(&pair[0]),
+                        b: proj(&pair[1]),
+                        color: PATH,
+                        width: 1.5,
+                    });
+                }
+                for p in path {
+                    prims.push(Prim::Circle {
+                        c: proj(p),
+                        r: 0.0006,
+                        color: PATH,
+                        fill: true,
+                    });
+                }
+            }
             for c in contacts {
                 let p = Point3::from(c.point);
                 prims.push(Prim::Circle {

@@ -1,11 +1,13 @@
 //! The quasi-static test world that stands in for Isaac Gym (spec §1.2 and §4).
 //!
 //! One action is the paper's 1 s held joint-position command, split into
-//! [`WorldParams::substeps`] sub-steps of length `h`. Each sub-step solves one second-order cone
+//! [`WorldParams::substeps`] sub-steps of length `h`. Each sub-step solves a second-order cone
 //! program with Clarabel (see `socp`): the task fingers are stiff joint springs (stiffness `kp`)
 //! toward their commanded positions, the object carries an `s`-scaled mass regulariser plus
 //! damping `D/h` and gravity, and every contact within [`WorldParams::contact_margin`] adds one
-//! Anitescu friction cone. The cone duals are the contact forces. Sub-steps stop early once
+//! friction cone: the Anitescu cone (screwdriver), or non-penetration plus a
+//! maximum-dissipation cone with a normal force iterated to a fixed point (card; see
+//! [`FrictionModel`]). The duals are the contact forces. Sub-steps stop early once
 //! `‖δq‖ < early_stop`. See `docs/world.md` for the model and its artifacts.
 
 pub mod bench;
@@ -34,9 +36,11 @@ pub struct WorldParams {
     pub substeps: usize,
     /// Joint stiffness of the task fingers (N·m/rad).
     pub kp: f64,
-    /// Joint damping of the task fingers (N·m·s/rad); Isaac's PD drive uses 1.0. It enters as
-    /// `D/h` on the joint diagonal, so a free finger closes `kp/(kp + D/h)` of its remaining
-    /// error per sub-step: a first-order lag with time constant `D/kp`, as in Isaac.
+    /// Joint damping of the task fingers (N·m·s/rad). It enters as `D/h` on the joint
+    /// diagonal, so a free finger closes `kp/(kp + D/h)` of its remaining error per sub-step:
+    /// a first-order lag with time constant `D/kp`. Default 0 (spec §1.2: stiff impedance, a
+    /// free finger reaches its command, as CSVTO's free-motion model assumes); Isaac's PD
+    /// drive uses 1.0, which leaves ≈ 7 % of a screwdriver command (kp = 3) unreached after 1 s.
     pub joint_damping: f64,
     /// Mass-regularisation scale `s`: the largest object mass entry becomes `kp/s` (qsim's
     /// `unactuated_mass_scale`).
@@ -71,6 +75,11 @@ pub struct WorldParams {
     /// Staggered iterations also require the linearised signed distances to match the true
     /// ones at the solution to within this (m).
     pub geometry_tolerance: f64,
+    /// When staggered iterations do not settle, solve that sub-step with the Anitescu cone
+    /// (flagged `friction_fallback`) instead of applying the last iterate (flagged
+    /// `friction_not_converged`). Off by default: on the card the cone's drag is worse than
+    /// an unsettled iterate (CSVTO's single-finger pushes lose their centimetre with it).
+    pub staggered_fallback: bool,
 }
 
 /// Friction formulation of the contact step.
@@ -108,7 +117,7 @@ impl WorldParams {
             action_duration: 1.0,
             substeps: 10,
             kp: scene.kp(),
-            joint_damping: 1.0,
+            joint_damping: 0.0,
             mass_scale: 5.0,
             contact_margin: 0.02,
             finger_friction: scene.finger_friction(),
@@ -124,6 +133,7 @@ impl WorldParams {
             staggered_tolerance: 1e-3,
             staggered_relative_tolerance: 0.02,
             geometry_tolerance: 2e-5,
+            staggered_fallback: false,
         }
     }
 
@@ -279,8 +289,16 @@ pub enum StepFlag {
     /// The screwdriver's roll or pitch passed its ±1.57 joint limit (not modelled as a stop).
     TiltLimit,
     /// Staggered friction iterations hit their limit before the normal forces (and the
-    /// re-linearised geometry) settled.
+    /// re-linearised geometry) settled; the last iterate was applied.
     FrictionNotConverged {
+        /// Sub-step index within the action.
+        substep: usize,
+        /// Largest remaining normal-force change (N) or signed-distance mismatch (m).
+        change: f64,
+    },
+    /// Staggered friction did not settle and this sub-step used the Anitescu cone instead
+    /// ([`WorldParams::staggered_fallback`]).
+    FrictionFallback {
         /// Sub-step index within the action.
         substep: usize,
         /// Largest remaining normal-force change (N) or signed-distance mismatch (m).
@@ -651,6 +669,7 @@ impl World {
                 solves,
                 status,
                 unconverged,
+                fell_back,
                 memory,
             } = match self.solve_substep(&q_cmd, substep) {
                 Ok(v) => v,
@@ -671,9 +690,11 @@ impl World {
                 report.flags.push(StepFlag::ReducedAccuracy { substep });
             }
             if let Some(change) = unconverged {
-                report
-                    .flags
-                    .push(StepFlag::FrictionNotConverged { substep, change });
+                report.flags.push(if fell_back {
+                    StepFlag::FrictionFallback { substep, change }
+                } else {
+                    StepFlag::FrictionNotConverged { substep, change }
+                });
             }
             self.apply_increment(&dx);
             self.last_contacts = contacts;
@@ -864,20 +885,25 @@ impl World {
         let mut solves = 0;
         let mut unconverged = None;
         let mut worst_status = SolverStatus::Solved;
+        let anitescu = || -> Result<(socp::Solution, Vec<contacts::Candidate>), WorldError> {
+            let cands = self.candidates_at(&vec![0.0; n]);
+            let rows: Vec<socp::ConeRow> = cands.iter().map(|c| c.row.clone()).collect();
+            let prog = socp::Program {
+                p: &p,
+                c: &c,
+                cones: &rows,
+                bounds: &bounds,
+                max_iter: self.params.solver_max_iter,
+                friction: socp::FrictionForm::Anitescu,
+            };
+            let sol = socp::solve(&prog).map_err(WorldError::Setup)?;
+            check(&sol)?;
+            Ok((sol, cands))
+        };
+        let mut fell_back = false;
         let (sol, cands) = match self.params.friction_model {
             FrictionModel::Anitescu => {
-                let cands = self.candidates_at(&vec![0.0; n]);
-                let rows: Vec<socp::ConeRow> = cands.iter().map(|c| c.row.clone()).collect();
-                let prog = socp::Program {
-                    p: &p,
-                    c: &c,
-                    cones: &rows,
-                    bounds: &bounds,
-                    max_iter: self.params.solver_max_iter,
-                    friction: socp::FrictionForm::Anitescu,
-                };
-                let sol = socp::solve(&prog).map_err(WorldError::Setup)?;
-                check(&sol)?;
+                let (sol, cands) = anitescu()?;
                 iters += sol.iterations;
                 solves += 1;
                 worst_status = sol.status;
@@ -972,7 +998,22 @@ impl World {
                         .collect();
                     prev = Some((keys, residual));
                 }
-                last.ok_or_else(|| WorldError::Setup("no staggered iteration ran".into()))?
+                let result =
+                    last.ok_or_else(|| WorldError::Setup("no staggered iteration ran".into()))?;
+                if unconverged.is_some() && self.params.staggered_fallback {
+                    // No fixed point (e.g. wedging at high μ): take the convex cone model's
+                    // answer for this sub-step and say so.
+                    let (sol, cands) = anitescu()?;
+                    iters += sol.iterations;
+                    solves += 1;
+                    if sol.status == SolverStatus::AlmostSolved {
+                        worst_status = SolverStatus::AlmostSolved;
+                    }
+                    fell_back = true;
+                    (sol, cands)
+                } else {
+                    result
+                }
             }
         };
         let memory = cands
@@ -1003,6 +1044,7 @@ impl World {
             solves,
             status: worst_status,
             unconverged,
+            fell_back,
             memory,
         })
     }
@@ -1063,6 +1105,7 @@ struct SubstepResult {
     solves: u32,
     status: SolverStatus,
     unconverged: Option<f64>,
+    fell_back: bool,
     memory: Vec<(ContactKey, f64)>,
 }
 

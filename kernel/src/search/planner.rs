@@ -236,7 +236,7 @@ impl<const K: usize, const N: usize, const O: usize, const S: usize> Planner<K, 
     {
         let t0 = clock.now_us();
         let mut stats = SearchStats::default();
-        let mut report = match self.setup(config, problem, objective) {
+        let mut report = match self.setup(config, problem, sampler, scorer, objective) {
             Err(status) => SearchReport::empty(status, problem.executed),
             Ok(ctx) => self.search(
                 &ctx, problem, sampler, scorer, objective, clock, t0, &mut stats,
@@ -249,10 +249,12 @@ impl<const K: usize, const N: usize, const O: usize, const S: usize> Planner<K, 
     }
 
     /// Validate everything and build the root.
-    fn setup<'a, C: TaskObjective>(
+    fn setup<'a, Sa: SegmentSampler, Sc: SegmentScorer, C: TaskObjective>(
         &mut self,
         config: &'a SearchConfig,
         problem: &Problem<'_>,
+        sampler: &Sa,
+        scorer: &Sc,
         objective: &C,
     ) -> Result<Ctx<'a>, SearchStatus> {
         config.validate().map_err(SearchStatus::InvalidConfig)?;
@@ -277,6 +279,8 @@ impl<const K: usize, const N: usize, const O: usize, const S: usize> Planner<K, 
             || dims.fingers != task.finger_names().len()
             || problem.prior.modes() != n_modes
             || !objective.accepts(&dims)
+            || !sampler.accepts(&dims)
+            || !scorer.accepts(&dims)
             || problem.executed.is_some_and(|m| m.index() >= n_modes)
         {
             return Err(SearchStatus::InvalidProblem);

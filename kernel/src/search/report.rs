@@ -52,8 +52,9 @@ pub enum SearchStatus {
     InvalidConfig(ConfigError),
     /// The problem needs more than the planner's capacity; nothing was searched.
     CapacityExceeded(Capacity),
-    /// The problem is inconsistent (prior or dimensions do not match the task, unknown
-    /// executed mode); nothing was searched.
+    /// The problem is inconsistent (prior or dimensions do not match the task, the sampler,
+    /// the scorer or the objective does not accept the segment sizes, unknown executed
+    /// mode); nothing was searched.
     InvalidProblem,
     /// The start state has the wrong length or a non-finite entry.
     InvalidStart,

@@ -18,6 +18,14 @@ pub trait SegmentSampler {
     /// an expansion into several calls only when this is smaller than `modes × k`.
     fn max_batch(&self) -> usize;
 
+    /// Whether the sampler can produce segments of these sizes (checked once per call; a
+    /// mismatch is [`crate::search::SearchStatus::InvalidProblem`]). Model adapters compare
+    /// them with the model's dimensions.
+    fn accepts(&self, dims: &SegmentDims) -> bool {
+        let _ = dims;
+        true
+    }
+
     /// Sample `n = modes.len()` segments: segment `i` has contact mode `modes[i]` and starts at
     /// the raw state `starts[i·state_dim .. (i+1)·state_dim]` (inpainted in row 0). Writes the
     /// raw segments to `out[i·T·D .. (i+1)·T·D]`. All noise comes from `rng`.
@@ -38,6 +46,13 @@ pub trait SegmentScorer {
 
     /// The largest batch one call accepts (`usize::MAX` when unbounded).
     fn max_batch(&self) -> usize;
+
+    /// Whether the scorer can score segments of these sizes (checked once per call; a
+    /// mismatch is [`crate::search::SearchStatus::InvalidProblem`]).
+    fn accepts(&self, dims: &SegmentDims) -> bool {
+        let _ = dims;
+        true
+    }
 
     /// Score `n = modes.len()` raw segments `segments[i·T·D ..]` with their modes; writes the
     /// probability that each is realistic, in `[0, 1]`, to `out[i]`.

@@ -34,8 +34,8 @@ pub use framing::{
 };
 pub use messages::{Frame, FromKernel, Hello, HelloAck, Message, ToKernel};
 pub use plan::{
-    ApproximateReason, CostToCome, MAX_PLAN_MODES, MAX_STATE_DIM, PlanReply, PlanRequest,
-    PlanStats, PlanStatus, SearchSettings, SearchVariant, Task,
+    ApproximateReason, CostToCome, MAX_PLAN_MODES, MAX_STATE_DIM, PlanCapacity, PlanReply,
+    PlanRequest, PlanStats, PlanStatus, SearchSettings, SearchVariant, SettingsField, Task,
 };
 pub use schema::{PROTOCOL_VERSION, SCHEMA_KEY};
 pub use upload::{

@@ -52,7 +52,8 @@ pub struct SearchSettings {
     pub beta: f32,
     /// Floor of the Markov prior's transition probabilities.
     pub p_min: f32,
-    /// Most node expansions before the search returns its best approximate plan.
+    /// Most node expansions before the search returns its best approximate plan (0: limited
+    /// only by the planner's capacity).
     pub node_budget: u32,
     /// Wall-clock budget in milliseconds (0: none).
     pub time_budget_ms: u32,
@@ -117,6 +118,49 @@ pub enum ApproximateReason {
     TimeBudget,
     /// Every node was expanded without reaching the goal.
     Exhausted,
+    /// A capacity of the kernel's planner (nodes, open list) ran out during the search.
+    Capacity {
+        /// Which one.
+        capacity: PlanCapacity,
+    },
+    /// The diffusion sampler (or its model engine) failed.
+    SamplerFailed,
+    /// The discriminator (or its model engine) failed.
+    ScorerFailed,
+}
+
+/// A capacity of the kernel's planner that a request needed more of.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, MaxSize)]
+pub enum PlanCapacity {
+    /// `k` exceeds the planner's particles per node.
+    Particles,
+    /// The node arena is full.
+    Nodes,
+    /// The open list is full.
+    OpenList,
+    /// The task's state has more columns than the planner holds.
+    StateDim,
+    /// A segment has more floats (`T·D`) than the planner holds.
+    SegmentFloats,
+    /// The task has more modes than the planner expands.
+    Modes,
+}
+
+/// A [`SearchSettings`] field that is out of range.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, MaxSize)]
+pub enum SettingsField {
+    /// `k` is zero.
+    K,
+    /// `max_depth` is zero or above [`MAX_PLAN_MODES`].
+    MaxDepth,
+    /// `gamma` is not in `(0, 1]`.
+    Gamma,
+    /// `alpha` is negative or not finite.
+    Alpha,
+    /// `beta` is negative or not finite.
+    Beta,
+    /// `p_min` is not in `[0, 1)` or too large for the task's mode count.
+    PMin,
 }
 
 /// Outcome of a search (mirror of the kernel's search status).
@@ -137,6 +181,19 @@ pub enum PlanStatus {
     InvalidGoal,
     /// The search was cancelled.
     Cancelled,
+    /// A search setting is out of range; nothing was searched.
+    InvalidSettings {
+        /// The first bad field.
+        field: SettingsField,
+    },
+    /// The kernel's models or prior do not fit the task (dimensions, mode count); nothing
+    /// was searched.
+    InvalidProblem,
+    /// The request needs more than the kernel's planner holds; nothing was searched.
+    CapacityExceeded {
+        /// Which capacity.
+        capacity: PlanCapacity,
+    },
 }
 
 /// Search statistics.

@@ -21,8 +21,11 @@ PlanRequest{task:Task,start_state:Vec<f32,16>,goal:f32,settings:SearchSettings,p
 SearchSettings{k:u16,max_depth:u8,gamma:f32,alpha:f32,beta:f32,p_min:f32,node_budget:u32,time_budget_ms:u32,seed:u64,cost_to_come:CostToCome,variant:SearchVariant};\
 CostToCome{0:Cumulative,1:LastSegment};SearchVariant{0:Particles,1:MaxLikelihood};\
 PlanReply{modes:Vec<u8,16>,terminal_state:Vec<f32,16>,status:PlanStatus,stats:PlanStats};\
-PlanStatus{0:Found,1:Approximate{reason:ApproximateReason},2:NoPlan,3:InvalidStart,4:InvalidGoal,5:Cancelled};\
-ApproximateReason{0:NodeBudget,1:TimeBudget,2:Exhausted};\
+PlanStatus{0:Found,1:Approximate{reason:ApproximateReason},2:NoPlan,3:InvalidStart,4:InvalidGoal,5:Cancelled,\
+6:InvalidSettings{field:SettingsField},7:InvalidProblem,8:CapacityExceeded{capacity:PlanCapacity}};\
+ApproximateReason{0:NodeBudget,1:TimeBudget,2:Exhausted,3:Capacity{capacity:PlanCapacity},4:SamplerFailed,5:ScorerFailed};\
+PlanCapacity{0:Particles,1:Nodes,2:OpenList,3:StateDim,4:SegmentFloats,5:Modes};\
+SettingsField{0:K,1:MaxDepth,2:Gamma,3:Alpha,4:Beta,5:PMin};\
 PlanStats{nodes_expanded:u32,nodes_generated:u32,sampler_calls:u32,discriminator_calls:u32,elapsed_ms:u32};\
 ModelRole{0:Denoiser,1:Discriminator};\
 ModelBegin{role:ModelRole,total_len_bytes:u32,crc32:u32};\

@@ -118,11 +118,13 @@ fn encode_into_small_buffer_is_an_error() {
         request_id: 1,
         body: ToKernel::Hello(Hello::current()),
     };
-    // Hello: id 1, tag 0, version 1, 9-byte schema key varint = 12 bytes; COBS bound 13, +1.
+    // Hello: id 1, tag 0, version 1, the schema key's varint (9 or 10 bytes, depending on
+    // the key); COBS adds 1 (frames this short), the delimiter 1.
+    let payload = 3 + dips_wire::size::varint_len(SCHEMA_KEY);
     assert_eq!(
         encode_frame(&frame, &mut small),
         Err(WireError::TooLong {
-            len_bytes: 14,
+            len_bytes: payload as u32 + 2,
             max_bytes: 4
         })
     );

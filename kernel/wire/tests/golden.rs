@@ -143,7 +143,7 @@ const GOLDEN_ERRORS: [&str; 11] = [
     "0407040900",
     "0507040a0300",
 ];
-const GOLDEN_SCHEMA_KEY: u64 = 0x78f3_ad3a_ff76_9280;
+const GOLDEN_SCHEMA_KEY: u64 = 0xafe7_ec31_0264_4e91;
 
 #[test]
 fn schema_key_is_pinned() {
@@ -174,6 +174,69 @@ fn wire_error_golden_bytes() {
         .map(|e| hex(&encode(7, FromKernel::Error(e))))
         .collect();
     assert_eq!(actual, GOLDEN_ERRORS, "actual: {actual:#?}");
+}
+
+/// Every `PlanStatus` variant and every `ApproximateReason`, in a minimal reply (statuses are
+/// how the kernel reports the outcome of planning, so pin them all). The first nine entries
+/// are the protocol-1 originals; the rest were appended by the kernel-wire integration.
+fn canonical_statuses() -> std::vec::Vec<PlanStatus> {
+    let approx = |reason| PlanStatus::Approximate { reason };
+    vec![
+        PlanStatus::Found,
+        approx(ApproximateReason::NodeBudget),
+        approx(ApproximateReason::TimeBudget),
+        approx(ApproximateReason::Exhausted),
+        PlanStatus::NoPlan,
+        PlanStatus::InvalidStart,
+        PlanStatus::InvalidGoal,
+        PlanStatus::Cancelled,
+        approx(ApproximateReason::Capacity {
+            capacity: PlanCapacity::OpenList,
+        }),
+        approx(ApproximateReason::SamplerFailed),
+        approx(ApproximateReason::ScorerFailed),
+        PlanStatus::InvalidSettings {
+            field: SettingsField::PMin,
+        },
+        PlanStatus::InvalidProblem,
+        PlanStatus::CapacityExceeded {
+            capacity: PlanCapacity::Modes,
+        },
+    ]
+}
+
+const GOLDEN_STATUSES: [&str; 14] = [
+    "030701010101010101010100",
+    "03070101020101010101010100",
+    "03070101030101010101010100",
+    "03070101030102010101010100",
+    "030701010202010101010100",
+    "030701010203010101010100",
+    "030701010204010101010100",
+    "030701010205010101010100",
+    "0307010104010302010101010100",
+    "03070101030104010101010100",
+    "03070101030105010101010100",
+    "03070101030605010101010100",
+    "030701010207010101010100",
+    "03070101030805010101010100",
+];
+
+#[test]
+fn plan_status_golden_bytes() {
+    let actual: std::vec::Vec<String> = canonical_statuses()
+        .into_iter()
+        .map(|status| {
+            let reply = PlanReply {
+                modes: Vec::new(),
+                terminal_state: Vec::new(),
+                status,
+                stats: PlanStats::default(),
+            };
+            hex(&encode(7, FromKernel::PlanReply(reply)))
+        })
+        .collect();
+    assert_eq!(actual, GOLDEN_STATUSES, "actual: {actual:#?}");
 }
 
 #[test]

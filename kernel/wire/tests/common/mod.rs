@@ -69,6 +69,42 @@ pub fn plan_status() -> impl Strategy<Value = PlanStatus> {
         Just(PlanStatus::InvalidStart),
         Just(PlanStatus::InvalidGoal),
         Just(PlanStatus::Cancelled),
+        approximate_extra(),
+        settings_field().prop_map(|field| PlanStatus::InvalidSettings { field }),
+        Just(PlanStatus::InvalidProblem),
+        plan_capacity().prop_map(|capacity| PlanStatus::CapacityExceeded { capacity }),
+    ]
+}
+
+/// The approximate reasons appended after the first three.
+pub fn approximate_extra() -> impl Strategy<Value = PlanStatus> {
+    prop_oneof![
+        plan_capacity().prop_map(|capacity| ApproximateReason::Capacity { capacity }),
+        Just(ApproximateReason::SamplerFailed),
+        Just(ApproximateReason::ScorerFailed),
+    ]
+    .prop_map(|reason| PlanStatus::Approximate { reason })
+}
+
+pub fn plan_capacity() -> impl Strategy<Value = PlanCapacity> {
+    prop_oneof![
+        Just(PlanCapacity::Particles),
+        Just(PlanCapacity::Nodes),
+        Just(PlanCapacity::OpenList),
+        Just(PlanCapacity::StateDim),
+        Just(PlanCapacity::SegmentFloats),
+        Just(PlanCapacity::Modes),
+    ]
+}
+
+pub fn settings_field() -> impl Strategy<Value = SettingsField> {
+    prop_oneof![
+        Just(SettingsField::K),
+        Just(SettingsField::MaxDepth),
+        Just(SettingsField::Gamma),
+        Just(SettingsField::Alpha),
+        Just(SettingsField::Beta),
+        Just(SettingsField::PMin),
     ]
 }
 

@@ -1,0 +1,134 @@
+//! `dips model check|run|lower`: validate, run and lower contract-v1 ONNX models.
+
+use std::path::PathBuf;
+
+use anyhow::{Context, bail};
+use clap::{Args, Subcommand, ValueEnum};
+use dips_onnx::io_json::{JsonTensor, TensorFile};
+use dips_onnx::{AnyEngine, EngineKind, Expectation, contract, lower_file};
+
+/// Arguments of `dips model`.
+#[derive(Debug, Args)]
+pub struct ModelArgs {
+    /// What to do.
+    #[command(subcommand)]
+    pub command: ModelCommand,
+}
+
+/// `dips model` subcommands.
+#[derive(Debug, Subcommand)]
+pub enum ModelCommand {
+    /// Validate the contract and print a JSON summary.
+    Check {
+        /// The `.onnx` file.
+        file: PathBuf,
+    },
+    /// Run a model on inputs in the fixtures' JSON shape.
+    Run {
+        /// The `.onnx` file.
+        file: PathBuf,
+        /// `{"inputs": {name: {"shape": [..], "data": [..]}}}`.
+        #[arg(long)]
+        input: PathBuf,
+        /// Where to write `{"outputs": {...}}`.
+        #[arg(long)]
+        output: PathBuf,
+        /// Which engine runs it.
+        #[arg(long, value_enum, default_value_t = EngineArg::Tract)]
+        engine: EngineArg,
+    },
+    /// Lower to the kernel blob.
+    Lower {
+        /// The `.onnx` file.
+        file: PathBuf,
+        /// The `.dipsm` to write.
+        #[arg(long)]
+        out: PathBuf,
+    },
+}
+
+/// The two inference engines.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum EngineArg {
+    /// tract-onnx on the `.onnx` file.
+    Tract,
+    /// The `dips-kernel` interpreter on the lowered blob.
+    Kernel,
+}
+
+impl From<EngineArg> for EngineKind {
+    fn from(e: EngineArg) -> Self {
+        match e {
+            EngineArg::Tract => EngineKind::Tract,
+            EngineArg::Kernel => EngineKind::Kernel,
+        }
+    }
+}
+
+/// Run `dips model`.
+pub fn run(args: ModelArgs) -> anyhow::Result<()> {
+    match args.command {
+        ModelCommand::Check { file } => {
+            let (proto, c) = contract::load_contract(&file)
+                .with_context(|| format!("checking {}", file.display()))?;
+            dips_onnx::lower::tensors::check_initializers_finite(&proto)?;
+            let lowered = dips_onnx::lower_proto(&proto)
+                .with_context(|| format!("lowering {}", file.display()))?;
+            let summary = serde_json::json!({
+                "file": file.display().to_string(),
+                "valid": true,
+                "contract": c,
+                "inputs": c.role.input_names().iter().map(|n| {
+                    let mut shape = vec![serde_json::json!("batch")];
+                    shape.extend(c.input_shape(n).unwrap_or_default().into_iter().map(serde_json::Value::from));
+                    (n.to_string(), serde_json::Value::from(shape))
+                }).collect::<serde_json::Map<_, _>>(),
+                "output": c.role.output_name(),
+                "kernel": {
+                    "ops": lowered.n_ops,
+                    "weights": lowered.n_weights,
+                    "arena_floats_per_sample": lowered.arena_per_sample,
+                    "scratch_floats": lowered.temp_len,
+                    "blob_bytes": lowered.blob.len(),
+                },
+            });
+            println!("{}", serde_json::to_string_pretty(&summary)?);
+        }
+        ModelCommand::Run {
+            file,
+            input,
+            output,
+            engine,
+        } => {
+            let mut e = AnyEngine::load(engine.into(), &file, &Expectation::default())?;
+            let c = e.contract().clone();
+            let io = TensorFile::read(&input)?;
+            let (batch, ins) = io.contract_inputs(&c)?;
+            let mut shape = vec![batch];
+            shape.extend(c.output_shape());
+            let mut out = vec![0.0; shape.iter().product()];
+            e.run(batch, &ins, &mut out)?;
+            let mut f = TensorFile::default();
+            f.outputs.insert(
+                c.role.output_name().to_string(),
+                JsonTensor { shape, data: out },
+            );
+            f.write(&output)?;
+        }
+        ModelCommand::Lower { file, out } => {
+            if out.extension().and_then(|e| e.to_str()) != Some("dipsm") {
+                bail!(
+                    "the kernel blob should be named *.dipsm, got {}",
+                    out.display()
+                );
+            }
+            let l = lower_file(&file, &Expectation::default())?;
+            l.write(&out)?;
+            println!(
+                "{}",
+                serde_json::json!({"out": out.display().to_string(), "bytes": l.blob.len(), "ops": l.n_ops, "weights": l.n_weights})
+            );
+        }
+    }
+    Ok(())
+}

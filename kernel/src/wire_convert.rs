@@ -1,0 +1,384 @@
+//! The kernel's side of the wire: conversions between the search's types and the
+//! `dips-wire` messages, and [`plan_request`], which answers a [`PlanRequest`] with a
+//! [`PlanReply`] through a real planning call.
+//!
+//! The mapping is one to one where both sides have the value: [`SearchConfig`] ↔
+//! [`SearchSettings`] (same fields, budgets `0` = unlimited on both sides), tasks, cost-to-come,
+//! variants, mode ids (the index into the task's mode table), and every [`SearchStatus`] ↔
+//! [`PlanStatus`] (the wire has two statuses the kernel never produces: `NoPlan` and
+//! `Cancelled`). The reply keeps the counters the wire carries; the report's expected
+//! progress, `g` and `h` stay on the kernel side.
+
+use core::fmt;
+
+use dips_wire::{
+    ApproximateReason as WireApproximate, CostToCome as WireCostToCome, MAX_PLAN_MODES,
+    PlanCapacity, PlanReply, PlanRequest, PlanStats, PlanStatus, RequestField, SearchSettings,
+    SearchVariant as WireVariant, SettingsField, Task as WireTask, WireError,
+};
+
+use crate::budget::Clock;
+use crate::mode::{MAX_STATE_DIM, ModeId, SegmentDims, Task};
+use crate::prior::MarkovPrior;
+use crate::search::config::ConfigError;
+use crate::search::{
+    ApproximateReason, Capacity, CostToCome, MAX_PLAN_LEN, Planner, Problem, SearchConfig,
+    SearchReport, SearchStats, SearchStatus, SearchVariant, SegmentSampler, SegmentScorer,
+};
+use crate::task::Objective;
+
+const _: () = assert!(MAX_PLAN_LEN == MAX_PLAN_MODES, "plan lengths must agree");
+const _: () = assert!(
+    MAX_STATE_DIM == dips_wire::MAX_STATE_DIM,
+    "state sizes must agree"
+);
+
+impl From<WireTask> for Task {
+    fn from(t: WireTask) -> Self {
+        match t {
+            WireTask::Screwdriver => Task::Screwdriver,
+            WireTask::Card => Task::Card,
+        }
+    }
+}
+
+impl From<Task> for WireTask {
+    fn from(t: Task) -> Self {
+        match t {
+            Task::Screwdriver => WireTask::Screwdriver,
+            Task::Card => WireTask::Card,
+        }
+    }
+}
+
+impl From<WireCostToCome> for CostToCome {
+    fn from(c: WireCostToCome) -> Self {
+        match c {
+            WireCostToCome::Cumulative => CostToCome::Cumulative,
+            WireCostToCome::LastSegment => CostToCome::LastSegment,
+        }
+    }
+}
+
+impl From<CostToCome> for WireCostToCome {
+    fn from(c: CostToCome) -> Self {
+        match c {
+            CostToCome::Cumulative => WireCostToCome::Cumulative,
+            CostToCome::LastSegment => WireCostToCome::LastSegment,
+        }
+    }
+}
+
+impl From<WireVariant> for SearchVariant {
+    fn from(v: WireVariant) -> Self {
+        match v {
+            WireVariant::Particles => SearchVariant::Particles,
+            WireVariant::MaxLikelihood => SearchVariant::MaxLikelihood,
+        }
+    }
+}
+
+impl From<SearchVariant> for WireVariant {
+    fn from(v: SearchVariant) -> Self {
+        match v {
+            SearchVariant::Particles => WireVariant::Particles,
+            SearchVariant::MaxLikelihood => WireVariant::MaxLikelihood,
+        }
+    }
+}
+
+impl From<SearchSettings> for SearchConfig {
+    /// Field by field; `node_budget` and `time_budget_ms` of `0` mean unlimited on both
+    /// sides. Not validated here ([`SearchConfig::validate`]).
+    fn from(s: SearchSettings) -> Self {
+        Self {
+            k: s.k,
+            max_depth: s.max_depth,
+            gamma: s.gamma,
+            alpha: s.alpha,
+            beta: s.beta,
+            p_min: s.p_min,
+            node_budget: s.node_budget,
+            time_budget_ms: s.time_budget_ms,
+            seed: s.seed,
+            cost_to_come: s.cost_to_come.into(),
+            variant: s.variant.into(),
+        }
+    }
+}
+
+impl From<SearchConfig> for SearchSettings {
+    fn from(c: SearchConfig) -> Self {
+        Self {
+            k: c.k,
+            max_depth: c.max_depth,
+            gamma: c.gamma,
+            alpha: c.alpha,
+            beta: c.beta,
+            p_min: c.p_min,
+            node_budget: c.node_budget,
+            time_budget_ms: c.time_budget_ms,
+            seed: c.seed,
+            cost_to_come: c.cost_to_come.into(),
+            variant: c.variant.into(),
+        }
+    }
+}
+
+impl From<Capacity> for PlanCapacity {
+    fn from(c: Capacity) -> Self {
+        match c {
+            Capacity::Particles => PlanCapacity::Particles,
+            Capacity::Nodes => PlanCapacity::Nodes,
+            Capacity::OpenList => PlanCapacity::OpenList,
+            Capacity::StateDim => PlanCapacity::StateDim,
+            Capacity::SegmentFloats => PlanCapacity::SegmentFloats,
+            Capacity::Modes => PlanCapacity::Modes,
+        }
+    }
+}
+
+impl From<PlanCapacity> for Capacity {
+    fn from(c: PlanCapacity) -> Self {
+        match c {
+            PlanCapacity::Particles => Capacity::Particles,
+            PlanCapacity::Nodes => Capacity::Nodes,
+            PlanCapacity::OpenList => Capacity::OpenList,
+            PlanCapacity::StateDim => Capacity::StateDim,
+            PlanCapacity::SegmentFloats => Capacity::SegmentFloats,
+            PlanCapacity::Modes => Capacity::Modes,
+        }
+    }
+}
+
+impl From<ConfigError> for SettingsField {
+    fn from(e: ConfigError) -> Self {
+        match e {
+            ConfigError::K => SettingsField::K,
+            ConfigError::MaxDepth => SettingsField::MaxDepth,
+            ConfigError::Gamma => SettingsField::Gamma,
+            ConfigError::Alpha => SettingsField::Alpha,
+            ConfigError::Beta => SettingsField::Beta,
+            ConfigError::PMin => SettingsField::PMin,
+        }
+    }
+}
+
+impl From<SettingsField> for ConfigError {
+    fn from(f: SettingsField) -> Self {
+        match f {
+            SettingsField::K => ConfigError::K,
+            SettingsField::MaxDepth => ConfigError::MaxDepth,
+            SettingsField::Gamma => ConfigError::Gamma,
+            SettingsField::Alpha => ConfigError::Alpha,
+            SettingsField::Beta => ConfigError::Beta,
+            SettingsField::PMin => ConfigError::PMin,
+        }
+    }
+}
+
+impl From<ApproximateReason> for WireApproximate {
+    fn from(r: ApproximateReason) -> Self {
+        match r {
+            ApproximateReason::NodeBudget => WireApproximate::NodeBudget,
+            ApproximateReason::TimeBudget => WireApproximate::TimeBudget,
+            ApproximateReason::Exhausted => WireApproximate::Exhausted,
+            ApproximateReason::Capacity(c) => WireApproximate::Capacity { capacity: c.into() },
+            ApproximateReason::SamplerFailed => WireApproximate::SamplerFailed,
+            ApproximateReason::ScorerFailed => WireApproximate::ScorerFailed,
+        }
+    }
+}
+
+impl From<WireApproximate> for ApproximateReason {
+    fn from(r: WireApproximate) -> Self {
+        match r {
+            WireApproximate::NodeBudget => ApproximateReason::NodeBudget,
+            WireApproximate::TimeBudget => ApproximateReason::TimeBudget,
+            WireApproximate::Exhausted => ApproximateReason::Exhausted,
+            WireApproximate::Capacity { capacity } => ApproximateReason::Capacity(capacity.into()),
+            WireApproximate::SamplerFailed => ApproximateReason::SamplerFailed,
+            WireApproximate::ScorerFailed => ApproximateReason::ScorerFailed,
+        }
+    }
+}
+
+impl From<SearchStatus> for PlanStatus {
+    fn from(s: SearchStatus) -> Self {
+        match s {
+            SearchStatus::Found => PlanStatus::Found,
+            SearchStatus::Approximate(r) => PlanStatus::Approximate { reason: r.into() },
+            SearchStatus::InvalidConfig(e) => PlanStatus::InvalidSettings { field: e.into() },
+            SearchStatus::CapacityExceeded(c) => {
+                PlanStatus::CapacityExceeded { capacity: c.into() }
+            }
+            SearchStatus::InvalidProblem => PlanStatus::InvalidProblem,
+            SearchStatus::InvalidStart => PlanStatus::InvalidStart,
+            SearchStatus::InvalidGoal => PlanStatus::InvalidGoal,
+        }
+    }
+}
+
+/// A wire status the kernel's search never produces.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct NoSearchStatus(pub PlanStatus);
+
+impl fmt::Display for NoSearchStatus {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "wire status {:?} has no kernel search status", self.0)
+    }
+}
+
+impl core::error::Error for NoSearchStatus {}
+
+impl TryFrom<PlanStatus> for SearchStatus {
+    type Error = NoSearchStatus;
+
+    fn try_from(s: PlanStatus) -> Result<Self, NoSearchStatus> {
+        Ok(match s {
+            PlanStatus::Found => SearchStatus::Found,
+            PlanStatus::Approximate { reason } => SearchStatus::Approximate(reason.into()),
+            PlanStatus::InvalidSettings { field } => SearchStatus::InvalidConfig(field.into()),
+            PlanStatus::CapacityExceeded { capacity } => {
+                SearchStatus::CapacityExceeded(capacity.into())
+            }
+            PlanStatus::InvalidProblem => SearchStatus::InvalidProblem,
+            PlanStatus::InvalidStart => SearchStatus::InvalidStart,
+            PlanStatus::InvalidGoal => SearchStatus::InvalidGoal,
+            PlanStatus::NoPlan | PlanStatus::Cancelled => return Err(NoSearchStatus(s)),
+        })
+    }
+}
+
+impl From<&SearchStats> for PlanStats {
+    /// The counters the wire carries (`discriminator_calls` = the scorer's calls).
+    fn from(s: &SearchStats) -> Self {
+        Self {
+            nodes_expanded: s.nodes_expanded,
+            nodes_generated: s.nodes_generated,
+            sampler_calls: s.sampler_calls,
+            discriminator_calls: s.scorer_calls,
+            elapsed_ms: s.elapsed_ms,
+        }
+    }
+}
+
+/// A mode id as the wire carries it (its index in the task's mode table).
+pub const fn mode_to_wire(mode: ModeId) -> u8 {
+    mode.0
+}
+
+/// A wire mode index as a mode of `task`; `None` when the task has no such mode.
+pub fn mode_from_wire(task: Task, index: u8) -> Option<ModeId> {
+    let id = ModeId(index);
+    (id.index() < task.mode_count()).then_some(id)
+}
+
+impl From<&SearchReport> for PlanReply {
+    /// The planned modes, the expected terminal state, the status and the counters.
+    fn from(r: &SearchReport) -> Self {
+        let mut modes = heapless::Vec::new();
+        for &m in &r.modes {
+            // Both sides hold MAX_PLAN_LEN == MAX_PLAN_MODES modes: cannot fail.
+            let _ = modes.push(mode_to_wire(m));
+        }
+        let mut terminal_state = heapless::Vec::new();
+        // Both sides hold MAX_STATE_DIM floats: cannot fail.
+        let _ = terminal_state.extend_from_slice(&r.terminal_state);
+        PlanReply {
+            modes,
+            terminal_state,
+            status: r.status.into(),
+            stats: (&r.stats).into(),
+        }
+    }
+}
+
+/// A [`PlanRequest`], checked and converted: everything a planning call needs except the
+/// prior and the models.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PlanInputs {
+    /// The task.
+    pub task: Task,
+    /// Its segment sizes (`CONTRACTS.md` §2).
+    pub dims: SegmentDims,
+    /// The search settings.
+    pub config: SearchConfig,
+    /// The raw start state.
+    pub start: heapless::Vec<f32, MAX_STATE_DIM>,
+    /// The mode executed before (replanning).
+    pub executed: Option<ModeId>,
+    /// The task's objective for the request's goal ([`Objective::for_goal`]).
+    pub objective: Objective,
+}
+
+impl PlanInputs {
+    /// Check a request: the start state has the task's state columns and is finite, the goal
+    /// is finite, the settings are valid, the previous mode is one of the task's. The first
+    /// bad field is named.
+    pub fn from_request(request: &PlanRequest) -> Result<Self, RequestField> {
+        let task = Task::from(request.task);
+        let dims = task.dims();
+        let start = request.start_state.clone();
+        if start.len() != dims.state_dim || start.iter().any(|v| !v.is_finite()) {
+            return Err(RequestField::StartState);
+        }
+        let objective =
+            Objective::for_goal(task, &start, request.goal).ok_or(RequestField::Goal)?;
+        let config = SearchConfig::from(request.settings);
+        config.validate().map_err(|_| RequestField::Settings)?;
+        let executed = match request.previous_mode {
+            None => None,
+            Some(i) => Some(mode_from_wire(task, i).ok_or(RequestField::PreviousMode)?),
+        };
+        Ok(Self {
+            task,
+            dims,
+            config,
+            start,
+            executed,
+            objective,
+        })
+    }
+
+    /// The search problem over `prior`.
+    pub fn problem<'a>(&'a self, prior: &'a MarkovPrior) -> Problem<'a> {
+        Problem {
+            task: self.task,
+            dims: self.dims,
+            start: &self.start,
+            executed: self.executed,
+            prior,
+        }
+    }
+}
+
+/// Answer a plan request: check it ([`PlanInputs::from_request`]; a bad field is
+/// [`WireError::InvalidRequest`]), run the planner with the given models, and convert the
+/// report. Every outcome of the search, failures included, is a [`PlanReply`] status.
+/// Never allocates.
+pub fn plan_request<const K: usize, const N: usize, const O: usize, const S: usize, Sa, Sc, Cl>(
+    planner: &mut Planner<K, N, O, S>,
+    request: &PlanRequest,
+    prior: &MarkovPrior,
+    sampler: &mut Sa,
+    scorer: &mut Sc,
+    clock: &mut Cl,
+) -> Result<PlanReply, WireError>
+where
+    Sa: SegmentSampler,
+    Sc: SegmentScorer,
+    Cl: Clock,
+{
+    let inputs =
+        PlanInputs::from_request(request).map_err(|field| WireError::InvalidRequest { field })?;
+    let report = planner.plan(
+        &inputs.config,
+        &inputs.problem(prior),
+        sampler,
+        scorer,
+        &inputs.objective,
+        clock,
+    );
+    Ok(PlanReply::from(&report))
+}
