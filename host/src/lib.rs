@@ -2,9 +2,12 @@
 
 pub mod atomic_write;
 pub mod cli;
+pub mod csvto;
+pub mod execute;
 pub mod geometry;
 pub mod hand;
 pub mod kinematics;
+pub mod problems;
 pub mod render;
 pub mod scenes;
 pub mod world;

@@ -35,6 +35,8 @@ pub enum BenchCommand {
     Inference(super::bench_inference::InferenceArgs),
     /// Time of one 1 s action (all sub-steps) in each scene of the quasi-static world.
     Sim(super::bench_sim::BenchSimArgs),
+    /// Seconds per online CSVTO step (screwdriver turn, N = 16, 25 iterations, H = 12).
+    Csvto(super::bench_csvto::CsvtoBenchArgs),
 }
 
 /// `dips bench search`.
@@ -71,6 +73,7 @@ pub fn run(args: BenchArgs) -> anyhow::Result<()> {
         BenchCommand::Search(a) => search(&a),
         BenchCommand::Inference(a) => super::bench_inference::run(&a),
         BenchCommand::Sim(a) => super::bench_sim::main(a),
+        BenchCommand::Csvto(a) => super::bench_csvto::run(a),
     }
 }
 

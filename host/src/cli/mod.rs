@@ -3,8 +3,10 @@
 use clap::{Parser, Subcommand};
 
 pub mod bench;
+pub mod bench_csvto;
 pub mod bench_inference;
 pub mod bench_sim;
+pub mod episode;
 pub mod model;
 pub mod sim;
 
@@ -26,6 +28,8 @@ pub enum Command {
     Bench(bench::BenchArgs),
     /// Quasi-static test world: run actions, draw scenes and trajectories.
     Sim(sim::SimArgs),
+    /// One closed-loop episode in the quasi-static world; writes DIR/result.json.
+    Episode(episode::EpisodeArgs),
 }
 
 /// Parse the process arguments and run the command.
@@ -35,5 +39,6 @@ pub fn main() -> anyhow::Result<()> {
         Command::Model(args) => model::run(args),
         Command::Bench(args) => bench::run(args),
         Command::Sim(args) => sim::main(args),
+        Command::Episode(args) => episode::run(args),
     }
 }

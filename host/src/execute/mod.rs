@@ -1,0 +1,15 @@
+//! Closed-loop CSVTO execution in the quasi-static world (spec `algorithms.md` §1.3): per
+//! contact mode a warm-up solve, then one re-solve per executed step on the shrinking
+//! horizon, executing `q_cmd = q + Δq₀` of the best particle.
+//!
+//! - [`settings`]: per-task CSVTO settings (spec §1.6);
+//! - [`mode_run`]: one contact mode executed in the world;
+//! - [`episode`]: a sequence of modes (given or drawn from the task's prior) and its result.
+
+pub mod episode;
+pub mod mode_run;
+pub mod settings;
+
+pub use episode::{EpisodeResult, run_episode, run_episode_on, sample_prior_sequence};
+pub use mode_run::{ExecError, ModeRun, StepLog, hand_state, mode_goal, pose_valid, run_mode};
+pub use settings::ExecSettings;

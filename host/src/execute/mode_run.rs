@@ -1,0 +1,306 @@
+//! One contact mode executed closed-loop in the world.
+
+use std::f64::consts::PI;
+use std::time::Instant;
+
+use dips_kernel::rng::KernelRng;
+use serde::Serialize;
+
+use super::settings::ExecSettings;
+use crate::csvto::{Problem, solve};
+use crate::hand::{Hand, HandError, ObjectPose};
+use crate::kinematics::HandModel;
+use crate::problems::init::default_particles;
+use crate::problems::{AllegroProblem, Mode, ProblemError, ProblemSpec};
+use crate::scenes::SceneKind;
+use crate::scenes::{card, screwdriver};
+
+/// Screwdriver turn goal per mode (rad, clockwise negative).
+pub const TURN_GOAL: f64 = -PI / 6.0;
+/// Card push goal per mode (m along y).
+pub const CARD_PUSH_GOAL: f64 = -0.02;
+
+/// The object goal of `mode` from the state `start` (spec §2.4): turn to `yaw − π/6` with
+/// roll and pitch at 0; card moves to `(0, y − 0.02, 0)`; regrasps hold the pose.
+pub fn mode_goal(mode: Mode, start: &[f64]) -> [f64; 3] {
+    let o = &start[start.len() - 3..];
+    match mode {
+        Mode::Turn => [0.0, 0.0, o[2] + TURN_GOAL],
+        Mode::IndexRegrasp | Mode::ThumbMiddleRegrasp => [0.0, 0.0, o[2]],
+        Mode::CardIndex | Mode::CardMiddle | Mode::CardBoth => [0.0, o[1] + CARD_PUSH_GOAL, 0.0],
+        Mode::CardRegrasp => [o[0], o[1], o[2]],
+    }
+}
+
+/// Errors from closed-loop execution.
+#[derive(Debug, thiserror::Error)]
+pub enum ExecError {
+    /// The hand (or world) failed a step.
+    #[error(transparent)]
+    Hand(#[from] HandError),
+    /// The problem could not be built from the measured state.
+    #[error(transparent)]
+    Problem(#[from] ProblemError),
+    /// Given initial particles do not fit the mode's problem.
+    #[error(
+        "initial particle {index} has {got} values; the {mode} problem needs {expected} \
+         ({horizon} rows of {row})"
+    )]
+    InitialParticles {
+        /// Which particle.
+        index: usize,
+        /// Its length.
+        got: usize,
+        /// Expected length.
+        expected: usize,
+        /// Mode name.
+        mode: &'static str,
+        /// Rows.
+        horizon: usize,
+        /// Row width.
+        row: usize,
+    },
+    /// No initial particles were given.
+    #[error("no initial particles")]
+    NoParticles,
+}
+
+/// What one executed step did.
+#[derive(Debug, Clone, Serialize)]
+pub struct StepLog {
+    /// Seconds spent in the CSVTO solve before this step.
+    pub solve_s: f64,
+    /// Iterations of that solve.
+    pub iters: usize,
+    /// The best particle's largest equality violation.
+    pub max_eq_violation: f64,
+    /// The best particle's largest inequality violation.
+    pub max_ineq_violation: f64,
+    /// The executed joint command `Δq₀`.
+    pub dq: Vec<f64>,
+    /// The planned state after the step (best particle's first row).
+    pub planned_state: Vec<f64>,
+    /// The world state after the step.
+    pub state: Vec<f64>,
+    /// Signed distance of every task finger's tip sphere to the object after the step (m),
+    /// from the measured joints and object pose and the planner's analytic geometry.
+    pub tip_sdf: Vec<f64>,
+    /// Whether the object is still valid.
+    pub valid: bool,
+}
+
+/// One executed mode.
+#[derive(Debug, Clone, Serialize)]
+pub struct ModeRun {
+    /// Mode name.
+    pub mode: &'static str,
+    /// The object goal it aimed for.
+    pub goal: [f64; 3],
+    /// World state at the start.
+    pub start_state: Vec<f64>,
+    /// World state at the end.
+    pub end_state: Vec<f64>,
+    /// Per step.
+    pub steps: Vec<StepLog>,
+    /// Regrasp target distances (m) at the end, one per regrasping finger (task order).
+    pub regrasp_target_distance: Vec<f64>,
+}
+
+impl ModeRun {
+    /// Solve times in seconds, one per step (the first is the warm-up).
+    pub fn solve_times(&self) -> Vec<f64> {
+        self.steps.iter().map(|s| s.solve_s).collect()
+    }
+
+    /// The smallest world sdf of finger `i` over the steps before the last.
+    pub fn min_mid_sdf(&self, i: usize) -> f64 {
+        let n = self.steps.len();
+        self.steps[..n.saturating_sub(1)]
+            .iter()
+            .map(|s| s.tip_sdf[i])
+            .fold(f64::INFINITY, f64::min)
+    }
+
+    /// The largest world sdf of finger `i` over the steps before the last.
+    pub fn max_mid_sdf(&self, i: usize) -> f64 {
+        let n = self.steps.len();
+        self.steps[..n.saturating_sub(1)]
+            .iter()
+            .map(|s| s.tip_sdf[i])
+            .fold(f64::NEG_INFINITY, f64::max)
+    }
+
+    /// World sdf of finger `i` at the end of the mode.
+    pub fn final_sdf(&self, i: usize) -> f64 {
+        self.steps.last().map_or(f64::NAN, |s| s.tip_sdf[i])
+    }
+}
+
+/// The raw state row `[task joints, object coordinates]` of a hand.
+pub fn hand_state<H: Hand + ?Sized>(hand: &H) -> Vec<f64> {
+    let joints = hand.joint_positions();
+    let mut s: Vec<f64> = hand
+        .scene()
+        .task_fingers()
+        .iter()
+        .flat_map(|f| joints[f.index()])
+        .collect();
+    s.extend_from_slice(&hand.object_pose().coords);
+    s
+}
+
+/// Task validity from an object pose: the screwdriver's cap within 2 cm of nominal, the card
+/// lying flat on the table (centre within 5 mm of its resting height).
+pub fn pose_valid(scene: SceneKind, pose: &ObjectPose) -> bool {
+    match scene {
+        SceneKind::Screwdriver => screwdriver::is_valid(&pose.pose.rotation.to_rotation_matrix()),
+        SceneKind::Card => (pose.pose.translation.vector.z - card::INITIAL_CENTER[2]).abs() <= 5e-3,
+    }
+}
+
+/// Drop the first `rows` rows of every particle (the executed steps).
+fn shift(particles: &mut [Vec<f64>], n: usize) {
+    for p in particles.iter_mut() {
+        p.drain(..n);
+    }
+}
+
+/// Execute `mode` on `hand` (the quasi-static world, a recorder around it, or a real hand)
+/// closed-loop: warm-up solve on `initial` particles (or the default initialisation), then a
+/// re-solve at every step with the shrinking horizon, commanding `q + Δq₀` of the best
+/// particle. `progress` receives one line per step.
+pub fn run_mode<H: Hand + ?Sized>(
+    hand: &mut H,
+    model: &HandModel,
+    mode: Mode,
+    settings: &ExecSettings,
+    initial: Option<Vec<Vec<f64>>>,
+    rng: &mut KernelRng,
+    progress: &mut dyn FnMut(&str),
+) -> Result<ModeRun, ExecError> {
+    let task: SceneKind = hand.scene();
+    let start_state = hand_state(hand);
+    let goal = mode_goal(mode, &start_state);
+    let h = settings.horizon;
+    let mut spec = ProblemSpec {
+        task,
+        mode,
+        horizon: h,
+        start: start_state.clone(),
+        goal,
+    };
+    let mut problem = AllegroProblem::new(model, &spec)?;
+    let n = problem.row_dim();
+    let mut particles = match initial {
+        Some(p) => {
+            if p.is_empty() {
+                return Err(ExecError::NoParticles);
+            }
+            if let Some((index, bad)) = p.iter().enumerate().find(|(_, x)| x.len() != h * n) {
+                return Err(ExecError::InitialParticles {
+                    index,
+                    got: bad.len(),
+                    expected: h * n,
+                    mode: mode.name(),
+                    horizon: h,
+                    row: n,
+                });
+            }
+            p
+        }
+        None => default_particles(&problem, mode, settings.particles, rng),
+    };
+    let nq = 4 * problem.fingers();
+    let mut steps = Vec::with_capacity(h);
+    for k in 0..h {
+        let iters = if k == 0 {
+            settings.warmup_iters
+        } else {
+            shift(&mut particles, n);
+            spec.start = hand_state(hand);
+            spec.horizon = h - k;
+            problem = AllegroProblem::new(model, &spec)?;
+            settings.online_iters
+        };
+        let t0 = Instant::now();
+        let report = solve(&problem, &mut particles, iters, &settings.csvto);
+        let solve_s = t0.elapsed().as_secs_f64();
+        let best = &particles[0];
+        let dq: Vec<f64> = (0..nq)
+            .map(|c| best[problem.dq_col(c / 4, c % 4)])
+            .collect();
+        let planned_state = problem.to_world_units(&best[..problem.state_dim()]);
+        let mut targets = hand.joint_positions();
+        for (i, f) in task.task_fingers().iter().enumerate() {
+            for j in 0..4 {
+                targets[f.index()][j] += dq[4 * i + j];
+            }
+        }
+        hand.command(&targets)?;
+        let state = hand_state(hand);
+        let o = [state[nq], state[nq + 1], state[nq + 2]];
+        let tip_sdf = (0..problem.fingers())
+            .map(|i| {
+                let q = [
+                    state[4 * i],
+                    state[4 * i + 1],
+                    state[4 * i + 2],
+                    state[4 * i + 3],
+                ];
+                problem.finger_sdf(i, &q, &o)
+            })
+            .collect::<Vec<_>>();
+        let valid = pose_valid(task, &hand.object_pose());
+        progress(&format!(
+            "{} step {}/{}: solve {:.2}s ({} it), eq {:.1e}, object {:?}, tip sdf {:?}{}",
+            mode.name(),
+            k + 1,
+            h,
+            solve_s,
+            iters,
+            report.max_eq_violation[0],
+            state[nq..]
+                .iter()
+                .map(|v| (v * 1e3).round() / 1e3)
+                .collect::<Vec<_>>(),
+            tip_sdf
+                .iter()
+                .map(|v| (v * 1e4).round() / 1e4)
+                .collect::<Vec<_>>(),
+            if valid { "" } else { " INVALID" }
+        ));
+        steps.push(StepLog {
+            solve_s,
+            iters,
+            max_eq_violation: report.max_eq_violation[0],
+            max_ineq_violation: report.max_ineq_violation[0],
+            dq,
+            planned_state,
+            state,
+            tip_sdf,
+            valid,
+        });
+    }
+    let end_state = hand_state(hand);
+    let o = [end_state[nq], end_state[nq + 1], end_state[nq + 2]];
+    let regrasp_target_distance = (0..problem.fingers())
+        .filter(|&i| !problem.in_contact(i))
+        .map(|i| {
+            let q = [
+                end_state[4 * i],
+                end_state[4 * i + 1],
+                end_state[4 * i + 2],
+                end_state[4 * i + 3],
+            ];
+            problem.target_distance(i, &q, &o)
+        })
+        .collect();
+    Ok(ModeRun {
+        mode: mode.name(),
+        goal,
+        start_state,
+        end_state,
+        steps,
+        regrasp_target_distance,
+    })
+}

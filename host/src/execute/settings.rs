@@ -1,0 +1,51 @@
+//! Per-task execution settings.
+
+use crate::csvto::CsvtoSettings;
+use crate::scenes::SceneKind;
+
+/// CSVTO settings for closed-loop execution of one task (spec §1.6).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ExecSettings {
+    /// Solver settings.
+    pub csvto: CsvtoSettings,
+    /// Number of particles `N`.
+    pub particles: usize,
+    /// Iterations of the first (warm-up) solve of a mode.
+    pub warmup_iters: usize,
+    /// Iterations of every later (online) solve.
+    pub online_iters: usize,
+    /// Steps per mode `H`.
+    pub horizon: usize,
+}
+
+impl ExecSettings {
+    /// The DIPS settings: screwdriver N = 16, α_J = 5e-3, 100/25 iterations, H = 12; card
+    /// α_J = 1e-2, 150/35 iterations, H = 8; α_C = 1, ε = 0.1 for both. The card clips the
+    /// Stein and constraint parts of the step separately (see
+    /// [`CsvtoSettings::clip_separately`]; measured in `docs/csvto.md`).
+    pub fn for_task(task: SceneKind) -> Self {
+        match task {
+            SceneKind::Screwdriver => Self {
+                csvto: CsvtoSettings {
+                    alpha_j: 5e-3,
+                    ..CsvtoSettings::default()
+                },
+                particles: 16,
+                warmup_iters: 100,
+                online_iters: 25,
+                horizon: 12,
+            },
+            SceneKind::Card => Self {
+                csvto: CsvtoSettings {
+                    alpha_j: 1e-2,
+                    clip_separately: true,
+                    ..CsvtoSettings::default()
+                },
+                particles: 16,
+                warmup_iters: 150,
+                online_iters: 35,
+                horizon: 8,
+            },
+        }
+    }
+}

@@ -1,0 +1,196 @@
+//! Finite-difference checks of the problem's Jacobians and cost gradient, and small
+//! open-loop solves.
+
+use dips_kernel::rng::KernelRng;
+
+use super::allegro::{AllegroProblem, ProblemSpec};
+use super::init::default_particles;
+use super::mode::Mode;
+use crate::csvto::{CsvtoSettings, Problem, StepConstraints, solve};
+use crate::kinematics::HandModel;
+use crate::scenes::SceneKind;
+
+fn start_state(task: SceneKind) -> Vec<f64> {
+    let q = task.default_joints();
+    let mut s = Vec::new();
+    for f in task.task_fingers() {
+        s.extend_from_slice(&q[f.index()]);
+    }
+    s.extend_from_slice(&[0.0, 0.0, 0.0]);
+    s
+}
+
+fn spec(mode: Mode, horizon: usize) -> ProblemSpec {
+    let task = mode.task();
+    ProblemSpec {
+        task,
+        mode,
+        horizon,
+        start: start_state(task),
+        goal: [0.0, 0.0, -0.5],
+    }
+}
+
+fn perturbed(problem: &AllegroProblem, mode: Mode, seed: u64) -> Vec<f64> {
+    let mut rng = KernelRng::seed_from_u64(seed);
+    let mut x = default_particles(problem, mode, 1, &mut rng).remove(0);
+    // Move the object off its start a little so every term has a derivative.
+    let n = problem.row_dim();
+    let nq = 4 * problem.fingers();
+    for t in 0..problem.horizon() {
+        x[t * n + nq] += 0.01 * (t as f64 + 1.0);
+        x[t * n + nq + 1] -= 0.007 * (t as f64 + 1.0);
+        x[t * n + nq + 2] -= 0.02 * (t as f64 + 1.0);
+    }
+    x
+}
+
+#[test]
+fn constraint_jacobians_match_finite_differences() {
+    let hand = HandModel::allegro_v4();
+    for (m, &mode) in [
+        Mode::Turn,
+        Mode::IndexRegrasp,
+        Mode::ThumbMiddleRegrasp,
+        Mode::CardIndex,
+        Mode::CardBoth,
+        Mode::CardRegrasp,
+    ]
+    .iter()
+    .enumerate()
+    {
+        let p = AllegroProblem::new(&hand, &spec(mode, 3)).expect("valid spec");
+        let x = perturbed(&p, mode, 7 + m as u64);
+        let (n, ds) = (p.row_dim(), p.state_dim());
+        let width = ds + n;
+        for t in 1..3 {
+            let mut local: Vec<f64> = x[(t - 1) * n..(t - 1) * n + ds].to_vec();
+            local.extend_from_slice(&x[t * n..(t + 1) * n]);
+            let eval = |v: &[f64]| {
+                let mut sc = StepConstraints::default();
+                sc.reset(p.n_eq(t), p.n_ineq(t), width);
+                p.step_constraints(t, &v[..ds], &v[ds..], &mut sc);
+                sc
+            };
+            let base = eval(&local);
+            let eps = 1e-6;
+            for c in 0..width {
+                let mut up = local.clone();
+                up[c] += eps;
+                let mut dn = local.clone();
+                dn[c] -= eps;
+                let (a, b) = (eval(&up), eval(&dn));
+                for r in 0..base.eq.len() {
+                    let fd = (a.eq[r] - b.eq[r]) / (2.0 * eps);
+                    let an = base.jac_eq[r * width + c];
+                    assert!(
+                        (fd - an).abs() < 1e-5 * (1.0 + fd.abs()),
+                        "{mode:?} t={t} eq row {r} col {c}: fd {fd} vs {an}"
+                    );
+                }
+                for r in 0..base.ineq.len() {
+                    let fd = (a.ineq[r] - b.ineq[r]) / (2.0 * eps);
+                    let an = base.jac_ineq[r * width + c];
+                    assert!(
+                        (fd - an).abs() < 1e-5 * (1.0 + fd.abs()),
+                        "{mode:?} t={t} ineq row {r} col {c}: fd {fd} vs {an}"
+                    );
+                }
+            }
+        }
+    }
+}
+
+#[test]
+fn cost_gradient_matches_finite_differences() {
+    let hand = HandModel::allegro_v4();
+    for (m, &mode) in [Mode::Turn, Mode::IndexRegrasp, Mode::CardMiddle]
+        .iter()
+        .enumerate()
+    {
+        let p = AllegroProblem::new(&hand, &spec(mode, 3)).expect("valid spec");
+        let x = perturbed(&p, mode, 30 + m as u64);
+        let mut g = vec![0.0; x.len()];
+        p.cost(&x, &mut g);
+        let eps = 1e-6;
+        for c in 0..x.len() {
+            let mut up = x.clone();
+            up[c] += eps;
+            let mut dn = x.clone();
+            dn[c] -= eps;
+            let mut s = vec![0.0; x.len()];
+            let fd = (p.cost(&up, &mut s) - p.cost(&dn, &mut s)) / (2.0 * eps);
+            assert!(
+                (fd - g[c]).abs() < 1e-4 * (1.0 + fd.abs()),
+                "{mode:?} col {c}: fd {fd} vs {}",
+                g[c]
+            );
+        }
+    }
+}
+
+#[test]
+fn counts_match_the_spec_bookkeeping() {
+    let hand = HandModel::allegro_v4();
+    let p = AllegroProblem::new(&hand, &spec(Mode::Turn, 12)).expect("valid spec");
+    // 3 contact fingers: 7 each + 3 torques; 8 friction faces + min force each.
+    assert_eq!(p.n_eq(0), 24);
+    assert_eq!(p.n_ineq(0), 27);
+    assert_eq!(p.row_dim(), 15 + 12 + 9);
+    let p = AllegroProblem::new(&hand, &spec(Mode::IndexRegrasp, 12)).expect("valid spec");
+    assert_eq!(p.n_eq(0), 14 + 3 + 4);
+    assert_eq!(p.n_eq(11), 14 + 3 + 4 + 1);
+    assert_eq!(p.n_ineq(0), 18 + 1);
+    assert_eq!(p.n_ineq(11), 18);
+}
+
+#[test]
+fn open_loop_turn_solve_is_feasible_and_turns() {
+    let hand = HandModel::allegro_v4();
+    let mut s = spec(Mode::Turn, 12);
+    s.goal = [0.0, 0.0, -std::f64::consts::PI / 6.0];
+    let p = AllegroProblem::new(&hand, &s).expect("valid spec");
+    let mut rng = KernelRng::seed_from_u64(3);
+    let mut parts = default_particles(&p, Mode::Turn, 8, &mut rng);
+    let rep = solve(&p, &mut parts, 100, &CsvtoSettings::default());
+    let n = p.row_dim();
+    let yaw_end = parts[0][11 * n + 14];
+    assert!(rep.max_eq_violation[0] < 5e-3, "{rep:?}");
+    assert!(yaw_end < -0.2, "planned yaw {yaw_end}");
+}
+
+#[test]
+fn bad_specs_are_typed_errors() {
+    use super::allegro::ProblemError;
+    let hand = HandModel::allegro_v4();
+    let mut s = spec(Mode::Turn, 12);
+    s.task = SceneKind::Card;
+    assert!(matches!(
+        AllegroProblem::new(&hand, &s),
+        Err(ProblemError::ModeTask { .. })
+    ));
+    let mut s = spec(Mode::Turn, 12);
+    s.start.pop();
+    assert_eq!(
+        AllegroProblem::new(&hand, &s).err(),
+        Some(ProblemError::StartLength {
+            task: "screwdriver",
+            expected: 15,
+            got: 14
+        })
+    );
+    let s = spec(Mode::Turn, 0);
+    assert_eq!(
+        AllegroProblem::new(&hand, &s).err(),
+        Some(ProblemError::ZeroHorizon)
+    );
+    let mut s = spec(Mode::Turn, 12);
+    s.goal[2] = f64::NAN;
+    assert!(matches!(
+        AllegroProblem::new(&hand, &s),
+        Err(ProblemError::NotFinite {
+            what: "goal",
+            index: 2
+        })
+    ));
+}
