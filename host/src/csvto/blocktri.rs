@@ -40,7 +40,7 @@ const MIN_PIVOT: f64 = 1e-12;
 
 /// In-place dense Cholesky of the `m×m` row-major SPD matrix `a` (lower triangle used and
 /// overwritten with `L`; the strict upper triangle is zeroed). Non-positive pivots (from
-/// round-off on a nearly singular matrix) are raised to [`MIN_PIVOT`], so the factor always
+/// round-off on a nearly singular matrix) are raised to `MIN_PIVOT` (1e-12), so the factor always
 /// exists; the returned count says how many pivots were raised.
 pub fn cholesky_in_place(a: &mut [f64], m: usize) -> usize {
     debug_assert_eq!(a.len(), m * m);
