@@ -76,13 +76,10 @@ fn check_regrasp(mode: Mode, fingers: &[usize]) {
                  target distance {target:.4}",
                 mode.name()
             );
-            // Contact is really broken at every step before the last. The plan keeps δ = 1.5 cm;
-            // the world's fingers lag their commands, so the measured clearance is 1.0–1.5 cm
-            // (docs/csvto.md): require two thirds of δ.
-            assert!(
-                mid >= REGRASP_CLEARANCE * 2.0 / 3.0,
-                "seed {seed}: mid sdf {mid}"
-            );
+            // Contact is really broken at every step before the last: the executed clearance
+            // is at least δ = 1.5 cm (the plan keeps δ plus a margin for the world's tracking,
+            // docs/csvto.md).
+            assert!(mid >= REGRASP_CLEARANCE, "seed {seed}: mid sdf {mid}");
             // And remade at the end.
             assert!(end.abs() <= 3e-3, "seed {seed}: final sdf {end}");
             // Close to the regrasp target (the default fingertip position on the object).
