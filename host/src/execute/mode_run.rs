@@ -236,6 +236,7 @@ pub fn run_mode<H: Hand + ?Sized>(
             // infeasible plan (measured: the card then barely moves). Re-run it and keep the
             // attempt with the lowest penalty.
             let mut retries = 0;
+
             while retries < settings.warmup_retries
                 && worst_violation(&report) > settings.warmup_tolerance
             {

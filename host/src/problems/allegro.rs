@@ -35,13 +35,6 @@ use crate::scenes::{self, SceneKind};
 
 /// Regrasp clearance δ (m).
 pub const REGRASP_CLEARANCE: f64 = 0.015;
-/// Margin the planner adds to [`REGRASP_CLEARANCE`]: plans keep `sdf ≥ δ + margin` before the
-/// last step so that the *executed* clearance stays `≥ δ`. With one contact finger left
-/// holding the screwdriver the object moves a little under the regrasping fingers at every
-/// step and the world's fingers do not reach every commanded target exactly; measured over
-/// 10 seeds the executed clearance fell up to 4.2 mm below a plan that kept exactly δ
-/// (`docs/csvto.md` §4).
-pub const REGRASP_PLAN_MARGIN: f64 = 0.005;
 /// Friction coefficient used by the planner (spec §1.6).
 pub const PLANNER_FRICTION: f64 = 0.95;
 /// Number of friction-pyramid faces.
@@ -846,7 +839,7 @@ impl Problem for AllegroProblem {
                 );
                 e += 1;
             } else {
-                out.ineq[q] = REGRASP_CLEARANCE + REGRASP_PLAN_MARGIN - c.sdf.v;
+                out.ineq[q] = REGRASP_CLEARANCE - c.sdf.v;
                 scatter(
                     &mut out.jac_ineq[q * width..(q + 1) * width],
                     &map,
