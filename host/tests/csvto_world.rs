@@ -1,9 +1,9 @@
 //! CSVTO executed closed-loop in the quasi-static world (issue 4).
 //!
-//! Each test runs a few seeds by default to keep the suite short; set `DIPS_CSVTO_SEEDS=10`
-//! for the 10-seed statistics reported in `docs/csvto.md` (the thresholds are the same).
-//! The whole-episode screwdriver test is `#[ignore]`d because of its runtime (about a minute
-//! per seed); run it with `cargo test --release -- --ignored`.
+//! Each test runs the issue's 10 seeds by default (`DIPS_CSVTO_SEEDS=N` overrides). The
+//! whole-episode screwdriver statistic is `#[ignore]`d because of its runtime (about four
+//! minutes for 10 seeds on the loaded 2-core machine, which would take the file past six
+//! minutes); run it with `cargo test --release -- --ignored`.
 
 use dips_host::execute::{ExecSettings, ModeRun, run_episode, run_mode, sample_prior_sequence};
 use dips_host::kinematics::HandModel;
@@ -17,7 +17,7 @@ fn seeds() -> u64 {
     std::env::var("DIPS_CSVTO_SEEDS")
         .ok()
         .and_then(|v| v.parse().ok())
-        .unwrap_or(3)
+        .unwrap_or(10)
 }
 
 /// Run `modes` from the task's start with seed `seed`, returning the per-mode runs.
@@ -112,7 +112,14 @@ fn single_finger_card_pushes_move_it_at_least_a_centimetre() {
         for mode in [Mode::CardIndex, Mode::CardMiddle] {
             let runs = run(SceneKind::Card, &[mode], seed);
             let dy = card_dy(&runs[0]);
-            eprintln!("{} seed {seed}: Δy {dy:.4}", mode.name());
+            let warm = &runs[0].steps[0];
+            let violation = warm.max_eq_violation.max(warm.max_ineq_violation);
+            eprintln!(
+                "{} seed {seed}: Δy {dy:.4} (warm-up {} iterations, violation {violation:.1e})",
+                mode.name(),
+                warm.iters
+            );
+
             assert!(runs[0].steps.iter().all(|s| s.valid));
             assert!(dy <= -0.01, "{} seed {seed}: Δy {dy}", mode.name());
         }

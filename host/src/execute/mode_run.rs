@@ -7,7 +7,7 @@ use dips_kernel::rng::KernelRng;
 use serde::Serialize;
 
 use super::settings::ExecSettings;
-use crate::csvto::{Problem, solve};
+use crate::csvto::{Problem, SolveReport, solve};
 use crate::hand::{Hand, HandError, ObjectPose};
 use crate::kinematics::HandModel;
 use crate::problems::init::default_particles;
@@ -158,6 +158,11 @@ pub fn pose_valid(scene: SceneKind, pose: &ObjectPose) -> bool {
     }
 }
 
+/// The best particle's largest constraint violation (equality or inequality).
+fn worst_violation(report: &SolveReport) -> f64 {
+    report.max_eq_violation[0].max(report.max_ineq_violation[0])
+}
+
 /// Drop the first `rows` rows of every particle (the executed steps).
 fn shift(particles: &mut [Vec<f64>], n: usize) {
     for p in particles.iter_mut() {
@@ -191,6 +196,7 @@ pub fn run_mode<H: Hand + ?Sized>(
     };
     let mut problem = AllegroProblem::new(model, &spec)?;
     let n = problem.row_dim();
+    let given_initial = initial.is_some();
     let mut particles = match initial {
         Some(p) => {
             if p.is_empty() {
@@ -223,7 +229,37 @@ pub fn run_mode<H: Hand + ?Sized>(
             settings.online_iters
         };
         let t0 = Instant::now();
-        let report = solve(&problem, &mut particles, iters, &settings.csvto);
+        let mut report = solve(&problem, &mut particles, iters, &settings.csvto);
+        let mut iters = iters;
+        if k == 0 {
+            // A warm-up that has not converged leaves every online solve to recover from an
+            // infeasible plan (measured: the card then barely moves). Re-run it and keep the
+            // attempt with the lowest penalty.
+            let mut retries = 0;
+
+            while retries < settings.warmup_retries
+                && worst_violation(&report) > settings.warmup_tolerance
+            {
+                retries += 1;
+                let mut again = if given_initial {
+                    particles.clone()
+                } else {
+                    default_particles(&problem, mode, settings.particles, rng)
+                };
+                let r = solve(&problem, &mut again, settings.warmup_iters, &settings.csvto);
+                iters += settings.warmup_iters;
+                progress(&format!(
+                    "{} warm-up not converged (violation {:.1e}); retry {retries}: {:.1e}",
+                    mode.name(),
+                    worst_violation(&report),
+                    worst_violation(&r)
+                ));
+                if r.penalties[0] < report.penalties[0] {
+                    particles = again;
+                    report = r;
+                }
+            }
+        }
         let solve_s = t0.elapsed().as_secs_f64();
         let best = &particles[0];
         let dq: Vec<f64> = (0..nq)
