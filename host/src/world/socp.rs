@@ -255,6 +255,32 @@ pub(crate) fn solve(prog: &Program<'_>) -> Result<Solution, String> {
 mod tests {
     use super::*;
 
+    /// A point at height 0 on a floor with normal +z and μ = 0.5; its velocity Jacobian is the
+    /// identity.
+    fn floor_cone() -> ConeRow {
+        let mut jac = Matrix3xX::zeros(3);
+        jac.fill_with_identity();
+        ConeRow {
+            phi: 0.0,
+            mu: 0.5,
+            normal: Vector3::z(),
+            jac,
+        }
+    }
+
+    /// The point on [`floor_cone`] with stiffness `p` and linear term `c`, Anitescu friction.
+    fn solve_on_floor(p: &DMatrix<f64>, c: &[f64]) -> Solution {
+        solve(&Program {
+            p,
+            c,
+            cones: &[floor_cone()],
+            bounds: &[],
+            max_iter: 100,
+            friction: FrictionForm::Anitescu,
+        })
+        .unwrap()
+    }
+
     /// A point pushed into a floor (1-D spring toward z = −0.01) stops at the floor and the dual
     /// equals the spring force; a tangential command slides it with Coulomb friction.
     #[test]
@@ -263,23 +289,7 @@ mod tests {
         let k = 100.0;
         let p = DMatrix::identity(3, 3) * k;
         let c = [-k * 0.004, 0.0, k * 0.01];
-        let mut jac = Matrix3xX::zeros(3);
-        jac.fill_with_identity();
-        let cone = ConeRow {
-            phi: 0.0,
-            mu: 0.5,
-            normal: Vector3::z(),
-            jac,
-        };
-        let sol = solve(&Program {
-            p: &p,
-            c: &c,
-            cones: &[cone],
-            bounds: &[],
-            max_iter: 100,
-            friction: FrictionForm::Anitescu,
-        })
-        .unwrap();
+        let sol = solve_on_floor(&p, &c);
         assert_eq!(sol.status, SolverStatus::Solved);
         // Normal force k·0.01 = 1 N on the point (+z); the tangential pull k·0.004 = 0.4 N is
         // inside the friction limit 0.5 N, so the point sticks and friction carries all of it.
@@ -289,23 +299,7 @@ mod tests {
         assert!(sol.x.iter().all(|v| v.abs() < 1e-6), "{:?}", sol.x);
         // Pull harder (1 N tangential > 0.5 N limit): it slides and lifts by μ·|slip| (Anitescu).
         let c = [-k * 0.01, 0.0, k * 0.01];
-        let mut jac = Matrix3xX::zeros(3);
-        jac.fill_with_identity();
-        let cone = ConeRow {
-            phi: 0.0,
-            mu: 0.5,
-            normal: Vector3::z(),
-            jac,
-        };
-        let sol = solve(&Program {
-            p: &p,
-            c: &c,
-            cones: &[cone],
-            bounds: &[],
-            max_iter: 100,
-            friction: FrictionForm::Anitescu,
-        })
-        .unwrap();
+        let sol = solve_on_floor(&p, &c);
         assert!(sol.x[0] > 1e-3, "{:?}", sol.x);
         assert!((sol.x[2] - 0.5 * sol.x[0]).abs() < 1e-6, "{:?}", sol.x);
         let f = sol.forces_on_a[0];
@@ -318,14 +312,7 @@ mod tests {
         let k = 100.0;
         let p = DMatrix::identity(3, 3) * k;
         let c = [-k * 0.01, 0.0, k * 0.01];
-        let mut jac = Matrix3xX::zeros(3);
-        jac.fill_with_identity();
-        let cone = ConeRow {
-            phi: 0.0,
-            mu: 0.5,
-            normal: Vector3::z(),
-            jac,
-        };
+        let cone = floor_cone();
         let normals = [1.0];
         let prog = Program {
             p: &p,
