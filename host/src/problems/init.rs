@@ -2,7 +2,7 @@
 
 use dips_kernel::rng::KernelRng;
 
-use super::allegro::AllegroProblem;
+use super::allegro::{AllegroProblem, pinned_object_coords};
 use super::mode::Mode;
 use crate::csvto::Problem;
 
@@ -20,7 +20,8 @@ fn normal(rng: &mut KernelRng) -> f64 {
     f64::from(rng.normal_f32())
 }
 
-/// `count` trajectories for `problem`: `Δq ~ N(0, 0.025²)` integrated from the start joints,
+/// `count` trajectories for `problem`: `Δq ~ N(0, 0.025²)` integrated from the start joints
+/// (zero for the holding fingers of the screwdriver's regrasp modes),
 /// the object held at its start pose, finger forces `0.3 N` along the inward normal plus
 /// `N(0, 0.15²)` (the index finger's
 /// ×0.01 in the screwdriver turn mode), and the card's table force carrying its weight.
@@ -48,6 +49,10 @@ pub fn default_particles(
             problem.contact_normal(i, &q, &o0)
         })
         .collect();
+    // In the screwdriver's regrasp modes the holding fingers start still: random motion of
+    // theirs is absorbed by tilting the object, and the plans then rock the screwdriver under
+    // the lifted fingers (measured, `docs/csvto.md` §4).
+    let hold = pinned_object_coords(problem.task(), mode) > 0;
     (0..count)
         .map(|_| {
             let mut x = vec![0.0; h * n];
@@ -55,7 +60,8 @@ pub fn default_particles(
             for t in 0..h {
                 let row = &mut x[t * n..(t + 1) * n];
                 for k in 0..nq {
-                    let dq = DQ_SIGMA * normal(rng);
+                    let still = hold && problem.contact_slot(k / 4).is_some();
+                    let dq = if still { 0.0 } else { DQ_SIGMA * normal(rng) };
                     row[nq + 3 + k] = dq;
                     q[k] += dq;
                     row[k] = q[k];

@@ -137,11 +137,23 @@ fn counts_match_the_spec_bookkeeping() {
     assert_eq!(p.n_eq(0), 24);
     assert_eq!(p.n_ineq(0), 27);
     assert_eq!(p.row_dim(), 15 + 12 + 9);
+    // Index regrasp: 2 contact fingers, 3 torques, 3 pinned object coordinates, 4 free-motion
+    // rows; two clearance rows (end and start pose of the step) before the last step, the
+    // terminal contact at the last.
     let p = AllegroProblem::new(&hand, &spec(Mode::IndexRegrasp, 12)).expect("valid spec");
-    assert_eq!(p.n_eq(0), 14 + 3 + 4);
-    assert_eq!(p.n_eq(11), 14 + 3 + 4 + 1);
-    assert_eq!(p.n_ineq(0), 18 + 1);
+    assert_eq!(p.n_eq(0), 14 + 3 + 3 + 4);
+    assert_eq!(p.n_eq(11), 14 + 3 + 3 + 4 + 1);
+    assert_eq!(p.n_ineq(0), 18 + 2);
     assert_eq!(p.n_ineq(11), 18);
+    // Thumb-middle regrasp: the index alone, the yaw pinned, two regrasping fingers.
+    let p = AllegroProblem::new(&hand, &spec(Mode::ThumbMiddleRegrasp, 12)).expect("valid spec");
+    assert_eq!(p.n_eq(0), 7 + 3 + 1 + 8);
+    assert_eq!(p.n_eq(11), 7 + 3 + 1 + 8 + 2);
+    assert_eq!(p.n_ineq(0), 9 + 4);
+    // Card pushes pin nothing; the middle finger regrasps while the index pushes.
+    let p = AllegroProblem::new(&hand, &spec(Mode::CardIndex, 8)).expect("valid spec");
+    assert_eq!(p.n_eq(0), 7 + 4 + 4);
+    assert_eq!(p.n_ineq(0), 9 + 2);
 }
 
 #[test]
@@ -193,4 +205,54 @@ fn bad_specs_are_typed_errors() {
             index: 2
         })
     ));
+}
+
+/// The planner's geometry takes object coordinates in problem units (the card's heading in
+/// units of `CARD_THETA_UNIT`) and must place the object where the world does: the fingertip
+/// distances of both agree with the world's parry geometry at turned, shifted object poses.
+#[test]
+fn planner_geometry_matches_the_world_at_moved_object_poses() {
+    use crate::world::World;
+    let hand = HandModel::allegro_v4();
+    let cases: [(Mode, [f64; 3]); 4] = [
+        (Mode::Turn, [0.04, -0.03, 0.7]),
+        (Mode::Turn, [-0.02, 0.05, -1.9]),
+        (Mode::CardBoth, [0.01, -0.02, 0.25]),
+        (Mode::CardBoth, [-0.03, -0.05, -0.6]),
+    ];
+    let mut rng = KernelRng::seed_from_u64(11);
+    for (mode, o) in cases {
+        let p = AllegroProblem::new(&hand, &spec(mode, 2)).expect("valid spec");
+        let task = mode.task();
+        let mut world = World::new(task);
+        for trial in 0..5 {
+            let mut state = start_state(task);
+            for v in state.iter_mut().take(4 * p.fingers()) {
+                *v += 0.2 * f64::from(rng.normal_f32());
+            }
+            let nq = 4 * p.fingers();
+            state[nq..].copy_from_slice(&o);
+            world.set_state(&state).expect("state fits the world");
+            // The world clamps joints to their limits; read back what it holds.
+            let state = world.state();
+            let measured = world.tip_distances();
+            for (i, &w) in measured.iter().enumerate() {
+                let q = [
+                    state[4 * i],
+                    state[4 * i + 1],
+                    state[4 * i + 2],
+                    state[4 * i + 3],
+                ];
+                let planned = p.finger_sdf(i, &q, &o);
+                // Inside the handle the planner measures depth to the cap's top (it merges
+                // handle and cap into one cylinder), 1 mm above the handle's own top.
+                let tolerance = if w < 0.0 { 1.01e-3 } else { 1e-6 };
+                assert!(
+                    (planned - w).abs() < tolerance,
+                    "{} trial {trial} finger {i} at {o:?}: planner {planned}, world {w}",
+                    task.name()
+                );
+            }
+        }
+    }
 }
