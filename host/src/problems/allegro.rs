@@ -615,6 +615,22 @@ impl AllegroProblem {
         (PYRAMID_FACES + 1) * self.nc + if t + 1 < self.horizon { 2 * nr } else { 0 }
     }
 
+    /// Signed distance of regrasping finger `i` at joints `q` (4) and object pose `o`, with its
+    /// derivatives and the step columns they belong to (joints from `qcol`, object from `ocol`).
+    fn regrasp_sdf(
+        &self,
+        i: usize,
+        q: &[f64],
+        o: &[f64; 3],
+        qcol: usize,
+        ocol: usize,
+    ) -> (Dual<7>, [usize; 7]) {
+        let v: [Dual<7>; 7] = seed(&[q[0], q[1], q[2], q[3], o[0], o[1], o[2]]);
+        let c = self.contact(i, &[v[0], v[1], v[2], v[3]], &[v[4], v[5], v[6]]);
+        let map = std::array::from_fn(|k| if k < 4 { qcol + k } else { ocol + k - 4 });
+        (c.sdf, map)
+    }
+
     /// The rows `o_{t+1,k} − o_{t,k} = 0` for object coordinates `k ≥ first`, from equality
     /// row `r`.
     fn hold_rows(
@@ -874,50 +890,29 @@ impl Problem for AllegroProblem {
             if self.slot[i].is_some() {
                 continue;
             }
-            let mut vals = [0.0; 7];
-            vals[..4].copy_from_slice(&row[4 * i..4 * i + 4]);
-            vals[4..].copy_from_slice(&on);
-            let v: [Dual<7>; 7] = seed(&vals);
-            let c = self.contact(i, &[v[0], v[1], v[2], v[3]], &[v[4], v[5], v[6]]);
-            let mut map = [0usize; 7];
-            for k in 0..4 {
-                map[k] = ds + 4 * i + k;
-            }
-            for k in 0..3 {
-                map[4 + k] = ds + 4 * nf + k;
-            }
+            let qn = &row[4 * i..4 * i + 4];
+            let (qcol, ocol) = (ds + 4 * i, ds + 4 * nf);
             if last {
-                out.eq[e] = c.sdf.v;
+                let (sdf, map) = self.regrasp_sdf(i, qn, &on, qcol, ocol);
+                out.eq[e] = sdf.v;
                 scatter(
                     &mut out.jac_eq[e * width..(e + 1) * width],
                     &map,
-                    &c.sdf.d,
+                    &sdf.d,
                     1.0,
                 );
                 e += 1;
             } else {
-                out.ineq[q] = REGRASP_CLEARANCE + CLEARANCE_MARGIN - c.sdf.v;
-                scatter(
-                    &mut out.jac_ineq[q * width..(q + 1) * width],
-                    &map,
-                    &c.sdf.d,
-                    -1.0,
-                );
-                q += 1;
-                {
-                    // The same clearance to the object where it was at the start of the step
-                    // (see [`REGRASP_CLEARANCE`]).
-                    vals[4..].copy_from_slice(&prev[4 * nf..4 * nf + 3]);
-                    let v: [Dual<7>; 7] = seed(&vals);
-                    let c = self.contact(i, &[v[0], v[1], v[2], v[3]], &[v[4], v[5], v[6]]);
-                    for k in 0..3 {
-                        map[4 + k] = 4 * nf + k;
-                    }
-                    out.ineq[q] = REGRASP_CLEARANCE + CLEARANCE_MARGIN - c.sdf.v;
+                // Clearance to the object where the step leaves it and where it found it (see
+                // [`REGRASP_CLEARANCE`]).
+                let before = [prev[4 * nf], prev[4 * nf + 1], prev[4 * nf + 2]];
+                for (o, ocol) in [(&on, ocol), (&before, 4 * nf)] {
+                    let (sdf, map) = self.regrasp_sdf(i, qn, o, qcol, ocol);
+                    out.ineq[q] = REGRASP_CLEARANCE + CLEARANCE_MARGIN - sdf.v;
                     scatter(
                         &mut out.jac_ineq[q * width..(q + 1) * width],
                         &map,
-                        &c.sdf.d,
+                        &sdf.d,
                         -1.0,
                     );
                     q += 1;
