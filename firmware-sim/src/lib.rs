@@ -6,9 +6,12 @@
 //! streams: COBS deframing with a fixed-capacity accumulator, postcard decoding, typed errors
 //! for bad frames, and it keeps serving after any of them.
 //!
-//! Planning is not wired in yet: a well-formed [`PlanRequest`] is answered with
-//! [`WireError::ModelNotLoaded`] until both models are uploaded, then with
-//! [`WireError::PlannerUnavailable`].
+//! A well-formed [`PlanRequest`] is answered with [`WireError::ModelNotLoaded`] until both
+//! models are uploaded, then planned by the kernel with the uploaded models
+//! ([`planning`]). A firmware built without planning memory ([`Firmware::new`]) answers
+//! [`WireError::PlannerUnavailable`] instead.
+
+pub mod planning;
 
 use std::io::{self, Read, Write};
 
@@ -18,9 +21,15 @@ use dips_wire::{
     MODEL_CHUNK_LEN, ModelAssembler, ModelRole, NO_REQUEST_ID, PROTOCOL_VERSION, PlanRequest,
     SCHEMA_KEY, ToKernel, UploadError, WireError, decode_frame, encode_frame,
 };
+use planning::{MonotonicClock, PlanMemory};
 
 /// Size of each static model buffer of the `dips-firmware-sim` binary, in bytes.
 pub const MODEL_CAPACITY_BYTES: usize = 32 * 1024 * 1024;
+
+/// Size of the static planning work area of the `dips-firmware-sim` binary, in `f32`s
+/// (64 MiB). The paper's settings (k 16, four card modes) with the fixture-sized models need
+/// about 2 M floats; see [`planning::PlanMemory`].
+pub const WORK_FLOATS: usize = 16 * 1024 * 1024;
 
 /// Bytes read from the input stream per read call.
 const READ_CHUNK_LEN: usize = 256;
@@ -32,17 +41,35 @@ pub struct Firmware<'m> {
     denoiser: ModelAssembler<'m>,
     discriminator: ModelAssembler<'m>,
     active_upload: Option<ModelRole>,
+    planning: Option<PlanMemory<'m>>,
+    clock: MonotonicClock,
 }
 
 impl<'m> Firmware<'m> {
     /// A firmware that stores uploaded models in the two given buffers (their lengths are
-    /// the largest models accepted).
+    /// the largest models accepted) and has no memory to plan in: plan requests are
+    /// checked, then answered with [`WireError::PlannerUnavailable`].
     pub fn new(denoiser_buf: &'m mut [u8], discriminator_buf: &'m mut [u8]) -> Self {
         Self {
             greeted: false,
             denoiser: ModelAssembler::new(denoiser_buf),
             discriminator: ModelAssembler::new(discriminator_buf),
             active_upload: None,
+            planning: None,
+            clock: MonotonicClock::new(),
+        }
+    }
+
+    /// A firmware that stores uploaded models in the two buffers and plans with them in
+    /// `memory`.
+    pub fn with_planning(
+        denoiser_buf: &'m mut [u8],
+        discriminator_buf: &'m mut [u8],
+        memory: PlanMemory<'m>,
+    ) -> Self {
+        Self {
+            planning: Some(memory),
+            ..Self::new(denoiser_buf, discriminator_buf)
         }
     }
 
@@ -139,15 +166,26 @@ impl<'m> Firmware<'m> {
     fn plan(&mut self, plan: &PlanRequest) -> Result<FromKernel, WireError> {
         // The kernel's own request checks (start state, goal, settings, previous mode).
         PlanInputs::from_request(plan).map_err(|field| WireError::InvalidRequest { field })?;
-        for role in [ModelRole::Denoiser, ModelRole::Discriminator] {
-            if self.model(role).is_none() {
-                return Err(WireError::ModelNotLoaded { role });
-            }
-        }
-        // The kernel's network interpreter is not wired into the firmware yet; once it is,
-        // `dips_kernel::wire_convert::plan_request` answers here through the model adapters.
-        Err(WireError::PlannerUnavailable)
+        let Self {
+            denoiser,
+            discriminator,
+            planning,
+            clock,
+            ..
+        } = self;
+        let den = loaded(denoiser, ModelRole::Denoiser)?;
+        let disc = loaded(discriminator, ModelRole::Discriminator)?;
+        let memory = planning.as_mut().ok_or(WireError::PlannerUnavailable)?;
+        planning::plan(memory, den, disc, plan, clock).map(FromKernel::PlanReply)
     }
+}
+
+/// The bytes of a loaded model, or the error naming the missing one.
+fn loaded<'a>(assembler: &'a ModelAssembler<'_>, role: ModelRole) -> Result<&'a [u8], WireError> {
+    assembler
+        .model()
+        .map(|(_, bytes)| bytes)
+        .ok_or(WireError::ModelNotLoaded { role })
 }
 
 /// Counts of what [`serve`] saw.

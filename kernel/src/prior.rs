@@ -10,7 +10,7 @@
 //! mass is taken from the remaining entries in proportion to their values, repeated until no
 //! entry falls below `p_min` (taking mass can push another entry under the floor).
 
-use crate::mode::{MAX_MODES, ModeId};
+use crate::mode::{MAX_MODES, ModeId, Task};
 use core::fmt;
 
 /// Rows of the table: the virtual start plus one per mode.
@@ -62,6 +62,24 @@ impl MarkovPrior {
             row[..modes].fill(1.0 / modes as f32);
         }
         Ok(Self { modes, p })
+    }
+
+    /// The paper's hand-designed prior for `task`, floored at `p_min` (spec `algorithms.md`
+    /// §3.4), for kernels that have not been given one fitted to demonstrations.
+    /// - Screwdriver (modes turn, index-regrasp, thumb-middle-regrasp): start with a turn;
+    ///   after a turn either regrasp; after a regrasp the other regrasp or a turn. With
+    ///   `p_min = 0.1` this is exactly the spec's matrix: `p(c₀) = [.8, .1, .1]`, and
+    ///   `.1` to repeat a mode, `.45` for each other mode.
+    /// - Card: uniform over its four modes.
+    pub fn paper(task: Task, p_min: f32) -> Result<Self, PriorError> {
+        let raw = match task {
+            Task::Screwdriver => Self::from_rows(
+                &[1.0, 0.0, 0.0],
+                &[&[0.0, 0.5, 0.5], &[0.5, 0.0, 0.5], &[0.5, 0.5, 0.0]],
+            )?,
+            Task::Card => Self::uniform(task.mode_count())?,
+        };
+        raw.with_floor(p_min)
     }
 
     /// A prior from explicit rows: `start` is `p(c_0)`, `rows[i]` the transitions out of mode
@@ -237,6 +255,28 @@ fn floor_row(row: &mut [f32], p_min: f64) {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn paper_priors_are_the_spec_matrices() {
+        let p = MarkovPrior::paper(Task::Screwdriver, 0.1).unwrap();
+        let close = |a: f32, b: f32| (a - b).abs() < 1e-6;
+        for (to, want) in [(0, 0.8), (1, 0.1), (2, 0.1)] {
+            assert!(close(p.probability(None, ModeId(to)), want), "start → {to}");
+        }
+        for from in 0..3u8 {
+            for to in 0..3u8 {
+                let want = if from == to { 0.1 } else { 0.45 };
+                let got = p.probability(Some(ModeId(from)), ModeId(to));
+                assert!(close(got, want), "{from} → {to}: {got}");
+            }
+        }
+        let c = MarkovPrior::paper(Task::Card, 0.1).unwrap();
+        assert!(close(c.probability(Some(ModeId(2)), ModeId(3)), 0.25));
+        assert_eq!(
+            MarkovPrior::paper(Task::Card, 0.3),
+            Err(PriorError::InvalidPMin)
+        );
+    }
 
     #[test]
     fn floor_examples_from_the_spec() {

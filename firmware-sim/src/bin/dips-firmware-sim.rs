@@ -1,8 +1,9 @@
 //! `dips-firmware-sim`: serve the DIPS wire protocol on stdin/stdout or over TCP.
 //!
-//! Usage: `dips-firmware-sim [--listen ADDR] [--model-capacity-bytes N]`.
-//! The two model buffers are static (`MODEL_CAPACITY_BYTES` each, zero-initialised memory
-//! that costs nothing until written); `--model-capacity-bytes` uses only a prefix of them.
+//! Usage: `dips-firmware-sim [--listen ADDR] [--model-capacity-bytes N] [--work-floats N]`.
+//! The two model buffers (`MODEL_CAPACITY_BYTES` each), the planner and the planning work
+//! area (`WORK_FLOATS` floats) are static, zero-initialised memory that costs nothing until
+//! written; `--model-capacity-bytes` and `--work-floats` use only a prefix of them.
 //! Nothing is allocated while serving. With `--listen`, connections are served one after
 //! another (each is a new session; loaded models persist) and the bound address is printed
 //! to stderr as `listening on ADDR`. Statistics go to stderr.
@@ -11,22 +12,38 @@ use std::net::TcpListener;
 use std::process::ExitCode;
 use std::sync::Mutex;
 
-use dips_firmware_sim::{Firmware, MODEL_CAPACITY_BYTES, ServeStats, serve};
+use dips_firmware_sim::planning::PlanMemory;
+use dips_firmware_sim::{Firmware, MODEL_CAPACITY_BYTES, ServeStats, WORK_FLOATS, serve};
+use dips_kernel::search::PaperPlanner;
 
 static DENOISER: Mutex<[u8; MODEL_CAPACITY_BYTES]> = Mutex::new([0; MODEL_CAPACITY_BYTES]);
 static DISCRIMINATOR: Mutex<[u8; MODEL_CAPACITY_BYTES]> = Mutex::new([0; MODEL_CAPACITY_BYTES]);
+static PLANNER: Mutex<PaperPlanner> = Mutex::new(PaperPlanner::new());
+static WORK: Mutex<[f32; WORK_FLOATS]> = Mutex::new([0.0; WORK_FLOATS]);
 
-const USAGE: &str = "usage: dips-firmware-sim [--listen ADDR] [--model-capacity-bytes N]";
+const USAGE: &str =
+    "usage: dips-firmware-sim [--listen ADDR] [--model-capacity-bytes N] [--work-floats N]";
 
 struct Args {
     listen: Option<String>,
     capacity: usize,
+    work: usize,
+}
+
+/// Parse a size flag's value, at most `max`.
+fn size(name: &str, v: &str, max: usize) -> Result<usize, String> {
+    let n: usize = v.parse().map_err(|e| format!("{name} {v:?}: {e}"))?;
+    if n > max {
+        return Err(format!("{name} {v} exceeds the static {max}"));
+    }
+    Ok(n)
 }
 
 fn parse_args() -> Result<Args, String> {
     let mut parsed = Args {
         listen: None,
         capacity: MODEL_CAPACITY_BYTES,
+        work: WORK_FLOATS,
     };
     let mut args = std::env::args().skip(1);
     while let Some(arg) = args.next() {
@@ -35,14 +52,11 @@ fn parse_args() -> Result<Args, String> {
             "--listen" => parsed.listen = Some(value("--listen")?),
             "--model-capacity-bytes" => {
                 let v = value("--model-capacity-bytes")?;
-                parsed.capacity = v
-                    .parse()
-                    .map_err(|e| format!("--model-capacity-bytes {v:?}: {e}"))?;
-                if parsed.capacity > MODEL_CAPACITY_BYTES {
-                    return Err(format!(
-                        "--model-capacity-bytes {v} exceeds the static {MODEL_CAPACITY_BYTES}"
-                    ));
-                }
+                parsed.capacity = size("--model-capacity-bytes", &v, MODEL_CAPACITY_BYTES)?;
+            }
+            "--work-floats" => {
+                let v = value("--work-floats")?;
+                parsed.work = size("--work-floats", &v, WORK_FLOATS)?;
             }
             "-h" | "--help" => return Err(USAGE.into()),
             other => return Err(format!("unknown argument {other:?}; {USAGE}")),
@@ -61,9 +75,15 @@ fn report(stats: &ServeStats) {
 fn run(args: &Args) -> Result<(), String> {
     let mut denoiser = DENOISER.lock().map_err(|_| "model buffer poisoned")?;
     let mut discriminator = DISCRIMINATOR.lock().map_err(|_| "model buffer poisoned")?;
-    let mut firmware = Firmware::new(
+    let mut planner = PLANNER.lock().map_err(|_| "planner poisoned")?;
+    let mut work = WORK.lock().map_err(|_| "work area poisoned")?;
+    let mut firmware = Firmware::with_planning(
         &mut denoiser[..args.capacity],
         &mut discriminator[..args.capacity],
+        PlanMemory {
+            planner: &mut planner,
+            work: &mut work[..args.work],
+        },
     );
     let Some(addr) = &args.listen else {
         let stats = serve(

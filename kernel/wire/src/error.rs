@@ -81,6 +81,47 @@ pub enum WireError {
         /// The offending field.
         field: RequestField,
     },
+    /// An uploaded model (CRC-correct) cannot be run by this kernel.
+    ModelRejected {
+        /// The model.
+        role: ModelRole,
+        /// Why.
+        fault: ModelFault,
+    },
+}
+
+/// Why the kernel cannot run an uploaded model.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, MaxSize)]
+pub enum ModelFault {
+    /// The bytes are not a lowered model this kernel reads (format, version, checksum,
+    /// layout or non-finite weights).
+    Invalid,
+    /// The model is the wrong kind (a denoiser uploaded as the discriminator or the
+    /// reverse), or its sizes do not match the other model's or the request's task.
+    WrongShape,
+    /// The kernel's memory cannot hold the model for one sample (`f32` counts).
+    TooLarge {
+        /// Floats the model needs for a batch of one.
+        needed_floats: u32,
+        /// Floats this kernel has for it.
+        capacity_floats: u32,
+    },
+}
+
+impl fmt::Display for ModelFault {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match *self {
+            Self::Invalid => f.write_str("not a model this kernel reads"),
+            Self::WrongShape => f.write_str("wrong kind or sizes for this role and task"),
+            Self::TooLarge {
+                needed_floats,
+                capacity_floats,
+            } => write!(
+                f,
+                "needs {needed_floats} floats of memory, the kernel has {capacity_floats}"
+            ),
+        }
+    }
 }
 
 impl fmt::Display for WireError {
@@ -114,6 +155,9 @@ impl fmt::Display for WireError {
                 f.write_str("models are loaded but this kernel has no planner wired in")
             }
             Self::InvalidRequest { field } => write!(f, "invalid plan request field {field}"),
+            Self::ModelRejected { role, fault } => {
+                write!(f, "the {role} model cannot be run: {fault}")
+            }
         }
     }
 }

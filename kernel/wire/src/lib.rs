@@ -27,7 +27,7 @@ pub mod schema;
 pub mod size;
 pub mod upload;
 
-pub use error::{RequestField, WireError};
+pub use error::{ModelFault, RequestField, WireError};
 pub use framing::{
     DecodeError, Feed, FrameAccumulator, MAX_ENCODED_FRAME_LEN, MAX_FRAME_LEN, NO_REQUEST_ID,
     decode_frame, encode_frame,

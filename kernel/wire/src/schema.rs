@@ -35,7 +35,8 @@ ModelLoaded{role:ModelRole,len_bytes:u32,crc32:u32};\
 WireError{0:BadFrame,1:TooLong{len_bytes:u32,max_bytes:u32},2:DecodeFailed,3:UnknownRequest{tag:u32},\
 4:VersionMismatch{kernel_version:u16,host_version:u16,kernel_schema_key:u64,host_schema_key:u64},\
 5:HandshakeRequired,6:Busy,7:Upload(UploadError),8:ModelNotLoaded{role:ModelRole},9:PlannerUnavailable,\
-10:InvalidRequest{field:RequestField}};\
+10:InvalidRequest{field:RequestField},11:ModelRejected{role:ModelRole,fault:ModelFault}};\
+ModelFault{0:Invalid,1:WrongShape,2:TooLarge{needed_floats:u32,capacity_floats:u32}};\
 RequestField{0:StartState,1:Goal,2:Settings,3:PreviousMode};\
 UploadError{0:NotStarted,1:TooLarge{total_len_bytes:u32,capacity_bytes:u32},\
 2:BadOffset{expected_offset_bytes:u32,got_offset_bytes:u32},3:Overflow{end_offset_bytes:u32,total_len_bytes:u32},\

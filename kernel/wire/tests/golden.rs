@@ -113,6 +113,13 @@ fn canonical_errors() -> std::vec::Vec<WireError> {
         WireError::InvalidRequest {
             field: RequestField::PreviousMode,
         },
+        WireError::ModelRejected {
+            role: ModelRole::Denoiser,
+            fault: ModelFault::TooLarge {
+                needed_floats: 300,
+                capacity_floats: 2,
+            },
+        },
     ]
 }
 
@@ -130,7 +137,7 @@ const GOLDEN_FROM_KERNEL: [&str; 5] = [
     "03070308e807a6f2d0df0c00",
     "080704040102030400",
 ];
-const GOLDEN_ERRORS: [&str; 11] = [
+const GOLDEN_ERRORS: [&str; 12] = [
     "0307040100",
     "08070401d00f9c0400",
     "0407040200",
@@ -142,8 +149,9 @@ const GOLDEN_ERRORS: [&str; 11] = [
     "050704080100",
     "0407040900",
     "0507040a0300",
+    "0407040b0502ac020200",
 ];
-const GOLDEN_SCHEMA_KEY: u64 = 0xafe7_ec31_0264_4e91;
+const GOLDEN_SCHEMA_KEY: u64 = 0x499e_47a9_da21_c2dc;
 
 #[test]
 fn schema_key_is_pinned() {

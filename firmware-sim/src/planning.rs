@@ -1,0 +1,217 @@
+//! Planning inside the firmware: the uploaded blobs run by the kernel's interpreter, wrapped
+//! in the search's sampler and scorer adapters, and one `plan_request` call per request.
+//!
+//! Memory comes from the caller once ([`PlanMemory`]): the planner and one `f32` work area.
+//! Every request splits the work area into the two engines' memory (weights, op scratch,
+//! activations) and the adapters' buffers; nothing is allocated. Engines are rebuilt from
+//! the blobs for every request (copying the weights, a few milliseconds), so a model swapped
+//! by an upload is used by the next request.
+//!
+//! The wire does not carry a Markov prior or sampler settings yet, so the firmware uses the
+//! paper's: [`MarkovPrior::paper`] floored at the request's `p_min`, and the default
+//! [`SamplerConfig`] (DDPM, the model's diffusion steps, noise ×0.5, guidance 1.2).
+
+use std::time::Instant;
+
+use dips_kernel::adapters::{
+    DiffusionSegmentSampler, DiscriminatorScorer, SamplerAdapterLayout, ScorerAdapterLayout,
+};
+use dips_kernel::budget::Clock;
+use dips_kernel::diffusion::SamplerConfig;
+use dips_kernel::nn::NnError;
+use dips_kernel::nn::engine::KernelEngine;
+use dips_kernel::nn::model::{ModelInfo, parse};
+use dips_kernel::prior::MarkovPrior;
+use dips_kernel::search::PaperPlanner;
+use dips_kernel::wire_convert::{PlanInputs, plan_request};
+use dips_wire::{ModelFault, ModelRole, PlanReply, PlanRequest, RequestField, WireError};
+
+/// `ModelInfo::role` of a denoiser blob.
+const DENOISER_ROLE: u8 = 0;
+/// `ModelInfo::role` of a discriminator blob.
+const DISCRIMINATOR_ROLE: u8 = 1;
+
+/// The memory the firmware plans in, given once by its owner.
+#[derive(Debug)]
+pub struct PlanMemory<'m> {
+    /// The planner: `k ≤ 16`, 512 nodes, 256 open entries, segments up to 481 floats.
+    pub planner: &'m mut PaperPlanner,
+    /// Work area for both engines and the adapters, split anew for every request. A request
+    /// needs `2·B` denoiser samples and `B` discriminator samples of activations for batches
+    /// of `B ≤ modes·k` segments; with less memory the batch is split into smaller engine
+    /// calls (same plan, more calls).
+    pub work: &'m mut [f32],
+}
+
+/// Microseconds since the firmware started, from the monotonic clock.
+#[derive(Debug, Clone, Copy)]
+pub struct MonotonicClock {
+    origin: Instant,
+}
+
+impl MonotonicClock {
+    /// A clock starting now.
+    pub fn new() -> Self {
+        Self {
+            origin: Instant::now(),
+        }
+    }
+}
+
+impl Default for MonotonicClock {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl Clock for MonotonicClock {
+    fn now_us(&mut self) -> u64 {
+        u64::try_from(self.origin.elapsed().as_micros()).unwrap_or(u64::MAX)
+    }
+}
+
+fn rejected(role: ModelRole, fault: ModelFault) -> WireError {
+    WireError::ModelRejected { role, fault }
+}
+
+fn saturating_u32(n: usize) -> u32 {
+    u32::try_from(n).unwrap_or(u32::MAX)
+}
+
+/// Parse a blob and check that it is a model of `role`.
+fn model_info(role: ModelRole, blob: &[u8]) -> Result<ModelInfo, WireError> {
+    let info = parse(blob).map_err(|_| rejected(role, ModelFault::Invalid))?;
+    let expected = match role {
+        ModelRole::Denoiser => DENOISER_ROLE,
+        ModelRole::Discriminator => DISCRIMINATOR_ROLE,
+    };
+    if info.role != expected {
+        return Err(rejected(role, ModelFault::WrongShape));
+    }
+    Ok(info)
+}
+
+/// How a work area of `capacity` floats is split for one request.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+struct Split {
+    denoiser: usize,
+    discriminator: usize,
+    sampler: SamplerAdapterLayout,
+    scorer: ScorerAdapterLayout,
+}
+
+impl Split {
+    fn total(&self) -> usize {
+        self.denoiser + self.discriminator + self.sampler.total() + self.scorer.total()
+    }
+}
+
+/// The split with the largest engine batch (segments per engine call, halved from
+/// `segments` until it fits) for sampler calls of `segments` segments.
+fn split_for(
+    den: &ModelInfo,
+    disc: &ModelInfo,
+    segments: usize,
+    capacity: usize,
+) -> Result<Split, WireError> {
+    let at = |chunk: usize| -> Option<Split> {
+        Some(Split {
+            // Classifier-free guidance evaluates every segment twice per engine call.
+            denoiser: den.memory_len(2 * chunk)?,
+            discriminator: disc.memory_len(chunk)?,
+            sampler: SamplerAdapterLayout::new(den.dims, segments, chunk),
+            scorer: ScorerAdapterLayout::new(disc.dims, chunk),
+        })
+    };
+    let mut chunk = segments.max(1);
+    loop {
+        let split = at(chunk).ok_or(rejected(ModelRole::Denoiser, ModelFault::Invalid))?;
+        if split.total() <= capacity {
+            return Ok(split);
+        }
+        if chunk == 1 {
+            // Name the larger of the two models.
+            let role = if split.denoiser >= split.discriminator {
+                ModelRole::Denoiser
+            } else {
+                ModelRole::Discriminator
+            };
+            return Err(rejected(
+                role,
+                ModelFault::TooLarge {
+                    needed_floats: saturating_u32(split.total()),
+                    capacity_floats: saturating_u32(capacity),
+                },
+            ));
+        }
+        chunk = chunk.div_ceil(2);
+    }
+}
+
+fn engine_fault(role: ModelRole, e: NnError) -> WireError {
+    match e {
+        NnError::MemoryTooSmall { needed, given } => rejected(
+            role,
+            ModelFault::TooLarge {
+                needed_floats: saturating_u32(needed),
+                capacity_floats: saturating_u32(given),
+            },
+        ),
+        _ => rejected(role, ModelFault::Invalid),
+    }
+}
+
+/// Plan `request` with the uploaded `denoiser` and `discriminator` blobs in `memory`.
+///
+/// Refusals are errors: a bad request field ([`WireError::InvalidRequest`]) or a model that
+/// cannot run ([`WireError::ModelRejected`]). Every outcome of the search, including models
+/// of another task ([`dips_wire::PlanStatus::InvalidProblem`]), is a [`PlanReply`].
+pub fn plan(
+    memory: &mut PlanMemory<'_>,
+    denoiser: &[u8],
+    discriminator: &[u8],
+    request: &PlanRequest,
+    clock: &mut impl Clock,
+) -> Result<PlanReply, WireError> {
+    let inputs =
+        PlanInputs::from_request(request).map_err(|field| WireError::InvalidRequest { field })?;
+    let den = model_info(ModelRole::Denoiser, denoiser)?;
+    let disc = model_info(ModelRole::Discriminator, discriminator)?;
+    let mut sizes = disc.dims;
+    sizes.diffusion_steps = den.dims.diffusion_steps;
+    if sizes != den.dims {
+        return Err(rejected(ModelRole::Discriminator, ModelFault::WrongShape));
+    }
+    let prior = MarkovPrior::paper(inputs.task, inputs.config.p_min).map_err(|_| {
+        WireError::InvalidRequest {
+            field: RequestField::Settings,
+        }
+    })?;
+    let segments = inputs.task.mode_count() * usize::from(inputs.config.k);
+    let split = split_for(&den, &disc, segments, memory.work.len())?;
+    let (den_mem, rest) = memory.work.split_at_mut(split.denoiser);
+    let (disc_mem, rest) = rest.split_at_mut(split.discriminator);
+    let (sampler_buf, rest) = rest.split_at_mut(split.sampler.total());
+    let scorer_buf = &mut rest[..split.scorer.total()];
+    let den_engine =
+        KernelEngine::new(denoiser, den_mem).map_err(|e| engine_fault(ModelRole::Denoiser, e))?;
+    let disc_engine = KernelEngine::new(discriminator, disc_mem)
+        .map_err(|e| engine_fault(ModelRole::Discriminator, e))?;
+    let mut sampler = DiffusionSegmentSampler::new(
+        den_engine,
+        SamplerConfig::default(),
+        sampler_buf,
+        &split.sampler,
+    )
+    .map_err(|_| rejected(ModelRole::Denoiser, ModelFault::WrongShape))?;
+    let mut scorer = DiscriminatorScorer::new(disc_engine, scorer_buf, &split.scorer)
+        .map_err(|_| rejected(ModelRole::Discriminator, ModelFault::WrongShape))?;
+    plan_request(
+        memory.planner,
+        request,
+        &prior,
+        &mut sampler,
+        &mut scorer,
+        clock,
+    )
+}

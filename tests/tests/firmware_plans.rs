@@ -1,0 +1,278 @@
+//! The firmware plans with uploaded models: the host lowers the exported fixture models,
+//! uploads them over the wire into firmware-sim, sends a plan request, and gets the same plan,
+//! bit for bit, as the kernel computes in-process with the same blobs, prior and sampler.
+//! Models the firmware cannot run are refused with typed errors, and models of another task
+//! get the search's `InvalidProblem` status.
+//!
+//! The fixtures have random weights: the plans mean nothing, but every stage of the firmware's
+//! path runs on real lowered models.
+
+use std::io::Cursor;
+use std::path::PathBuf;
+
+use dips_firmware_sim::planning::PlanMemory;
+use dips_firmware_sim::{Firmware, serve};
+use dips_kernel::adapters::{
+    DiffusionSegmentSampler, DiscriminatorScorer, SamplerAdapterLayout, ScorerAdapterLayout,
+};
+use dips_kernel::budget::NoClock;
+use dips_kernel::diffusion::SamplerConfig;
+use dips_kernel::engine::DenoiserEngine;
+use dips_kernel::mode::Task;
+use dips_kernel::nn::engine::KernelEngine;
+use dips_kernel::nn::model::parse;
+use dips_kernel::prior::MarkovPrior;
+use dips_kernel::search::PaperPlanner;
+use dips_kernel::wire_convert::plan_request;
+use dips_onnx::{Expectation, Role, lower_file};
+use dips_wire::{
+    Feed, Frame, FrameAccumulator, FromKernel, Hello, MAX_ENCODED_FRAME_LEN, ModelFault, ModelRole,
+    PROTOCOL_VERSION, PlanReply, PlanRequest, PlanStatus, SCHEMA_KEY, SearchSettings, ToKernel,
+    WireError, decode_frame, encode_frame, upload_messages,
+};
+
+const MODEL_CAPACITY: usize = 4 << 20;
+const WORK_FLOATS: usize = 8 << 20;
+
+fn lowered(task: Task, role: Role) -> Vec<u8> {
+    let (dir, file) = match (task, role) {
+        (Task::Screwdriver, Role::Denoiser) => ("torch-screwdriver-legacy", "denoiser.onnx"),
+        (Task::Screwdriver, Role::Discriminator) => {
+            ("torch-screwdriver-legacy", "discriminator.onnx")
+        }
+        (Task::Card, Role::Denoiser) => ("torch-card-dynamo", "denoiser.onnx"),
+        (Task::Card, Role::Discriminator) => ("torch-card-dynamo", "discriminator.onnx"),
+    };
+    let path = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("../onnx/tests/fixtures")
+        .join(dir)
+        .join(file);
+    lower_file(&path, &Expectation::new(role, task.name()))
+        .unwrap_or_else(|e| panic!("lowering {}: {e}", path.display()))
+        .blob
+}
+
+fn request(seed: u64) -> PlanRequest {
+    let mut start = vec![0.1f32; Task::Screwdriver.dims().state_dim];
+    let sd = start.len();
+    start[sd - 2] = 1.0; // cos yaw
+    start[sd - 1] = 0.0; // sin yaw
+    PlanRequest {
+        task: dips_wire::Task::Screwdriver,
+        start_state: start.iter().copied().collect(),
+        goal: -1.0,
+        settings: SearchSettings {
+            k: 4,
+            max_depth: 3,
+            node_budget: 3,
+            seed,
+            ..SearchSettings::default()
+        },
+        previous_mode: None,
+    }
+}
+
+fn frames(messages: impl IntoIterator<Item = ToKernel>) -> Vec<u8> {
+    let mut bytes = Vec::new();
+    let mut buf = [0u8; MAX_ENCODED_FRAME_LEN];
+    for (i, body) in messages.into_iter().enumerate() {
+        let frame = Frame {
+            request_id: i as u32 + 1,
+            body,
+        };
+        bytes.extend_from_slice(encode_frame(&frame, &mut buf).unwrap());
+    }
+    bytes
+}
+
+fn replies(bytes: &[u8]) -> Vec<FromKernel> {
+    let mut acc = FrameAccumulator::<MAX_ENCODED_FRAME_LEN>::new();
+    let mut out = Vec::new();
+    let mut window = bytes;
+    loop {
+        match acc.feed(window) {
+            Feed::Consumed => return out,
+            Feed::Frame { payload, remaining } => {
+                out.push(decode_frame::<FromKernel>(payload).unwrap().body);
+                window = remaining;
+            }
+            Feed::Error { error, .. } => panic!("bad reply frame: {error}"),
+        }
+    }
+}
+
+/// A session: hello, the two uploads, then `requests`; returns the replies to `requests`.
+fn session(
+    denoiser: &[u8],
+    discriminator: &[u8],
+    work_floats: usize,
+    requests: &[PlanRequest],
+) -> Vec<FromKernel> {
+    let mut den_buf = vec![0u8; MODEL_CAPACITY];
+    let mut disc_buf = vec![0u8; MODEL_CAPACITY];
+    let mut planner = Box::new(PaperPlanner::new());
+    let mut work = vec![0.0f32; work_floats];
+    let mut firmware = Firmware::with_planning(
+        &mut den_buf,
+        &mut disc_buf,
+        PlanMemory {
+            planner: &mut planner,
+            work: &mut work,
+        },
+    );
+    let mut messages = vec![ToKernel::Hello(Hello {
+        protocol_version: PROTOCOL_VERSION,
+        schema_key: SCHEMA_KEY,
+    })];
+    messages.extend(upload_messages(ModelRole::Denoiser, denoiser).unwrap());
+    messages.extend(upload_messages(ModelRole::Discriminator, discriminator).unwrap());
+    let setup = messages.len();
+    messages.extend(requests.iter().cloned().map(ToKernel::PlanRequest));
+    let mut out = Vec::new();
+    serve(&mut firmware, Cursor::new(frames(messages)), &mut out).unwrap();
+    let all = replies(&out);
+    assert_eq!(all.len(), setup + requests.len());
+    for reply in &all[..setup] {
+        assert!(!matches!(reply, FromKernel::Error(_)), "setup: {reply:?}");
+    }
+    all[setup..].to_vec()
+}
+
+/// The same request planned in-process with the kernel engines over the same blobs.
+fn in_process(denoiser: &[u8], discriminator: &[u8], request: &PlanRequest) -> PlanReply {
+    let den_info = parse(denoiser).unwrap();
+    let disc_info = parse(discriminator).unwrap();
+    let segments = 3 * usize::from(request.settings.k);
+    let mut den_mem = vec![0.0f32; den_info.memory_len(2 * segments).unwrap()];
+    let mut disc_mem = vec![0.0f32; disc_info.memory_len(segments).unwrap()];
+    let den = KernelEngine::new(denoiser, &mut den_mem).unwrap();
+    let disc = KernelEngine::new(discriminator, &mut disc_mem).unwrap();
+    let sl = SamplerAdapterLayout::new(DenoiserEngine::dims(&den), segments, segments);
+    let cl = ScorerAdapterLayout::new(disc_info.dims, segments);
+    let (mut sb, mut cb) = (vec![0.0f32; sl.total()], vec![0.0f32; cl.total()]);
+    let mut sampler = DiffusionSegmentSampler::new(den, SamplerConfig::default(), &mut sb, &sl)
+        .expect("sampler adapter");
+    let mut scorer = DiscriminatorScorer::new(disc, &mut cb, &cl).expect("scorer adapter");
+    let prior = MarkovPrior::paper(Task::Screwdriver, request.settings.p_min).unwrap();
+    let mut planner = Box::new(PaperPlanner::new());
+    plan_request(
+        &mut planner,
+        request,
+        &prior,
+        &mut sampler,
+        &mut scorer,
+        &mut NoClock,
+    )
+    .unwrap()
+}
+
+fn plan_reply(reply: &FromKernel) -> PlanReply {
+    match reply {
+        FromKernel::PlanReply(r) => r.clone(),
+        other => panic!("expected a plan reply, got {other:?}"),
+    }
+}
+
+/// Everything but the wall-clock time (the firmware reads a real clock, the in-process
+/// reference none).
+fn without_time(mut reply: PlanReply) -> PlanReply {
+    reply.stats.elapsed_ms = 0;
+    reply
+}
+
+#[test]
+fn the_firmware_plans_with_uploaded_models_as_the_kernel_does_in_process() {
+    let den = lowered(Task::Screwdriver, Role::Denoiser);
+    let disc = lowered(Task::Screwdriver, Role::Discriminator);
+    let requests = [request(5), request(6), request(5)];
+    let got = session(&den, &disc, WORK_FLOATS, &requests);
+    let first = plan_reply(&got[0]);
+    assert!(
+        matches!(
+            first.status,
+            PlanStatus::Found | PlanStatus::Approximate { .. }
+        ),
+        "{first:?}"
+    );
+    assert!(!first.modes.is_empty());
+    assert!((1..=3).contains(&first.stats.nodes_expanded));
+    assert_eq!(
+        without_time(first.clone()),
+        without_time(in_process(&den, &disc, &requests[0]))
+    );
+    // Same seed, same plan, also later in the same session; another seed plans anew.
+    assert_eq!(
+        without_time(plan_reply(&got[2])),
+        without_time(first.clone())
+    );
+    assert_eq!(
+        without_time(plan_reply(&got[1])),
+        without_time(in_process(&den, &disc, &requests[1]))
+    );
+
+    // A work area too small for the models' full batch splits it into smaller engine calls:
+    // the same plan.
+    let den_info = parse(&den).unwrap();
+    let disc_info = parse(&disc).unwrap();
+    let tight = den_info.memory_len(6).unwrap() + disc_info.memory_len(3).unwrap() + (1 << 16);
+    let small = session(&den, &disc, tight, &requests[..1]);
+    assert_eq!(without_time(plan_reply(&small[0])), without_time(first));
+}
+
+#[test]
+fn models_the_firmware_cannot_run_are_refused_with_typed_errors() {
+    let den = lowered(Task::Screwdriver, Role::Denoiser);
+    let disc = lowered(Task::Screwdriver, Role::Discriminator);
+    let req = [request(1)];
+    let error = |replies: Vec<FromKernel>| match &replies[0] {
+        FromKernel::Error(e) => *e,
+        other => panic!("expected an error, got {other:?}"),
+    };
+    // Bytes with a correct CRC that are not a lowered model.
+    let junk = vec![7u8; 1000];
+    assert_eq!(
+        error(session(&junk, &disc, WORK_FLOATS, &req)),
+        WireError::ModelRejected {
+            role: ModelRole::Denoiser,
+            fault: ModelFault::Invalid
+        }
+    );
+    // The models uploaded in each other's place.
+    assert_eq!(
+        error(session(&disc, &den, WORK_FLOATS, &req)),
+        WireError::ModelRejected {
+            role: ModelRole::Denoiser,
+            fault: ModelFault::WrongShape
+        }
+    );
+    // A denoiser and a discriminator of different tasks.
+    let card_disc = lowered(Task::Card, Role::Discriminator);
+    assert_eq!(
+        error(session(&den, &card_disc, WORK_FLOATS, &req)),
+        WireError::ModelRejected {
+            role: ModelRole::Discriminator,
+            fault: ModelFault::WrongShape
+        }
+    );
+    // Too little memory for even one sample.
+    match error(session(&den, &disc, 1000, &req)) {
+        WireError::ModelRejected {
+            fault:
+                ModelFault::TooLarge {
+                    needed_floats,
+                    capacity_floats,
+                },
+            ..
+        } => assert!(needed_floats > capacity_floats && capacity_floats == 1000),
+        other => panic!("{other:?}"),
+    }
+}
+
+#[test]
+fn models_of_another_task_give_an_invalid_problem_reply() {
+    let den = lowered(Task::Card, Role::Denoiser);
+    let disc = lowered(Task::Card, Role::Discriminator);
+    let reply = plan_reply(&session(&den, &disc, WORK_FLOATS, &[request(1)])[0]);
+    assert_eq!(reply.status, PlanStatus::InvalidProblem);
+    assert_eq!(reply.stats.sampler_calls, 0);
+}
