@@ -139,3 +139,110 @@ fn binary_serves_tcp_connections_one_after_another() {
     child.kill().unwrap();
     child.wait().unwrap();
 }
+
+/// The binary, started as users start it, plans with models uploaded over stdio, exactly as
+/// the library's firmware does in-process.
+#[test]
+fn binary_plans_with_models_uploaded_over_stdio() {
+    use dips_firmware_sim::planning::PlanMemory;
+    use dips_firmware_sim::{Firmware, serve};
+    use dips_kernel::search::PaperPlanner;
+    use dips_onnx::{Expectation, Role, lower_file};
+
+    let fixture = |file: &str, role| {
+        let path = std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+            .join("../onnx/tests/fixtures/torch-screwdriver-legacy")
+            .join(file);
+        lower_file(&path, &Expectation::new(role, "screwdriver"))
+            .unwrap()
+            .blob
+    };
+    let den = fixture("denoiser.onnx", Role::Denoiser);
+    let disc = fixture("discriminator.onnx", Role::Discriminator);
+    let mut start = [0.1f32; 16];
+    start[14] = 1.0;
+    start[15] = 0.0;
+    let mut requests = vec![ToKernel::Hello(Hello::current())];
+    requests.extend(upload_messages(ModelRole::Denoiser, &den).unwrap());
+    requests.extend(upload_messages(ModelRole::Discriminator, &disc).unwrap());
+    requests.push(ToKernel::PlanRequest(PlanRequest {
+        task: Task::Screwdriver,
+        start_state: heapless::Vec::from_slice(&start).unwrap(),
+        goal: -1.0,
+        settings: SearchSettings {
+            k: 4,
+            node_budget: 2,
+            seed: 3,
+            ..SearchSettings::default()
+        },
+        previous_mode: Some(0),
+    }));
+    let mut input = Vec::new();
+    for (i, body) in requests.into_iter().enumerate() {
+        input.extend(frame_bytes(i as u32, body));
+    }
+    let decode = |bytes: &[u8]| {
+        let mut acc = FrameAccumulator::<MAX_ENCODED_FRAME_LEN>::new();
+        let mut replies = Vec::new();
+        let mut window = bytes;
+        while let Feed::Frame { payload, remaining } = acc.feed(window) {
+            replies.push(decode_frame::<FromKernel>(payload).unwrap().body);
+            window = remaining;
+        }
+        replies
+    };
+
+    let mut child = Command::new(env!("CARGO_BIN_EXE_dips-firmware-sim"))
+        .args(["--work-floats", "4000000"])
+        .stdin(Stdio::piped())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut stdin = child.stdin.take().unwrap();
+    let to_child = input.clone();
+    let writer = std::thread::spawn(move || stdin.write_all(&to_child));
+    let out = child.wait_with_output().unwrap();
+    writer.join().unwrap().unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let from_binary = decode(&out.stdout);
+
+    let (mut den_buf, mut disc_buf) = (vec![0u8; 4 << 20], vec![0u8; 4 << 20]);
+    let mut planner = Box::new(PaperPlanner::new());
+    let mut work = vec![0.0f32; 4_000_000];
+    let mut firmware = Firmware::with_planning(
+        &mut den_buf,
+        &mut disc_buf,
+        PlanMemory {
+            planner: &mut planner,
+            work: &mut work,
+        },
+    );
+    let mut in_process = Vec::new();
+    serve(&mut firmware, &input[..], &mut in_process).unwrap();
+    let in_process = decode(&in_process);
+
+    assert_eq!(from_binary.len(), in_process.len());
+    let plan = |replies: &[FromKernel]| match replies.last() {
+        Some(FromKernel::PlanReply(r)) => {
+            let mut r = r.clone();
+            r.stats.elapsed_ms = 0;
+            r
+        }
+        other => panic!("expected a plan reply, got {other:?}"),
+    };
+    let reply = plan(&from_binary);
+    assert!(
+        matches!(
+            reply.status,
+            PlanStatus::Found | PlanStatus::Approximate { .. }
+        ),
+        "{reply:?}"
+    );
+    assert!((1..=2).contains(&reply.stats.nodes_expanded), "{reply:?}");
+    assert_eq!(reply, plan(&in_process));
+}
