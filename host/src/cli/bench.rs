@@ -79,7 +79,7 @@ pub fn run(args: BenchArgs) -> anyhow::Result<()> {
 
 /// `std::time::Instant` as the kernel's clock.
 #[derive(Debug)]
-struct StdClock(Instant);
+pub(crate) struct StdClock(pub(crate) Instant);
 
 impl Clock for StdClock {
     fn now_us(&mut self) -> u64 {

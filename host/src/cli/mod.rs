@@ -8,6 +8,7 @@ pub mod bench_inference;
 pub mod bench_sim;
 pub mod episode;
 pub mod model;
+pub mod plan;
 pub mod sim;
 
 /// DIPS: diffusion-informed probabilistic contact search for multi-finger manipulation.
@@ -30,6 +31,8 @@ pub enum Command {
     Sim(sim::SimArgs),
     /// One closed-loop episode in the quasi-static world; writes DIR/result.json.
     Episode(episode::EpisodeArgs),
+    /// One A* planning call from the task's start state with the diffusion models.
+    Plan(plan::PlanArgs),
 }
 
 /// Parse the process arguments and run the command.
@@ -40,5 +43,6 @@ pub fn main() -> anyhow::Result<()> {
         Command::Bench(args) => bench::run(args),
         Command::Sim(args) => sim::main(args),
         Command::Episode(args) => episode::run(args),
+        Command::Plan(args) => plan::run(args),
     }
 }

@@ -46,6 +46,19 @@ fn contract_force_col(task: SceneKind, nf: usize, i: usize) -> usize {
     contract_dims(task).0 + 4 * nf + 3 * i
 }
 
+/// A task state `[q (4·nf), o (3)]` (metres and radians) in the contract layout: the joints,
+/// the first two object coordinates, then `cos` and `sin` of the third (yaw or heading).
+pub fn contract_state(state: &[f64]) -> Vec<f64> {
+    let n = state.len();
+    let mut out = Vec::with_capacity(n + 1);
+    out.extend_from_slice(&state[..n.saturating_sub(1)]);
+    if let Some(&angle) = state.last() {
+        out.push(angle.cos());
+        out.push(angle.sin());
+    }
+    out
+}
+
 /// The problem trajectory `x` (with the problem's start state) in the contract layout,
 /// `(H + 1) × D` values row-major.
 pub fn to_contract(problem: &AllegroProblem, x: &[f64]) -> Vec<f64> {
@@ -63,9 +76,7 @@ pub fn to_contract(problem: &AllegroProblem, x: &[f64]) -> Vec<f64> {
             problem.to_world_units(&x[(t - 1) * n..(t - 1) * n + ds])
         };
         let row = &mut out[t * d..(t + 1) * d];
-        row[..nq + 2].copy_from_slice(&state[..nq + 2]);
-        row[nq + 2] = state[nq + 2].cos();
-        row[nq + 3] = state[nq + 2].sin();
+        row[..dsc].copy_from_slice(&contract_state(&state));
         if t < h {
             let pr = &x[t * n..(t + 1) * n];
             for c in 0..nq {

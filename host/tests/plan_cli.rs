@@ -1,0 +1,111 @@
+//! `dips plan` on the command line, with the exported fixture models (random weights: the
+//! plans mean nothing, the pipeline and its determinism are what is checked).
+
+use std::process::Command;
+
+fn fixtures(dir: &str) -> String {
+    format!(
+        "{}/../onnx/tests/fixtures/{dir}",
+        env!("CARGO_MANIFEST_DIR")
+    )
+}
+
+/// Run `dips plan` with `args`; the JSON on success, stderr on failure.
+fn plan(args: &[&str]) -> Result<serde_json::Value, String> {
+    let out = Command::new(env!("CARGO_BIN_EXE_dips"))
+        .arg("plan")
+        .args(args)
+        .env_remove("RUST_BACKTRACE")
+        .output()
+        .expect("run dips");
+    if out.status.success() {
+        Ok(serde_json::from_slice(&out.stdout).expect("JSON on stdout"))
+    } else {
+        Err(String::from_utf8_lossy(&out.stderr).into_owned())
+    }
+}
+
+fn small(task: &str, dir: &str, seed: &str, engine: &str) -> serde_json::Value {
+    let models = fixtures(dir);
+    plan(&[
+        "--task",
+        task,
+        "--models",
+        &models,
+        "--seed",
+        seed,
+        "--engine",
+        engine,
+        "--k",
+        "4",
+        "--node-budget",
+        "2",
+        "--sampler",
+        "ddim:8",
+        "--json",
+    ])
+    .unwrap_or_else(|e| panic!("{task}: {e}"))
+}
+
+/// The output without its wall time.
+fn timeless(mut v: serde_json::Value) -> serde_json::Value {
+    v.as_object_mut().unwrap().remove("planning_s");
+    v
+}
+
+#[test]
+fn plans_both_tasks_deterministically_with_either_engine() {
+    for (task, dir, names) in [
+        (
+            "screwdriver",
+            "torch-screwdriver-legacy",
+            &["turn", "index-regrasp", "thumb-middle-regrasp"][..],
+        ),
+        (
+            "card",
+            "torch-card-dynamo",
+            &["index", "middle", "both", "regrasp"][..],
+        ),
+    ] {
+        let a = small(task, dir, "3", "kernel");
+        assert_eq!(a["task"], task);
+        let status = a["status"].as_str().unwrap();
+        assert!(
+            status == "Found" || status.starts_with("Approximate"),
+            "{task}: {status}"
+        );
+        let modes = a["modes"].as_array().unwrap();
+        assert!(!modes.is_empty(), "{task}: {a}");
+        assert!(modes.iter().all(|m| names.contains(&m.as_str().unwrap())));
+        let expanded = a["stats"]["nodes_expanded"].as_u64().unwrap();
+        assert!((1..=2).contains(&expanded), "{task}: {a}");
+        assert!(a["planning_s"].as_f64().unwrap() >= 0.0);
+        // Same seed, same plan.
+        assert_eq!(
+            timeless(small(task, dir, "3", "kernel")),
+            timeless(a.clone())
+        );
+        // The two engines agree to ~1e-5, so the search makes the same choices.
+        let t = small(task, dir, "3", "tract");
+        assert_eq!(t["modes"], a["modes"], "{task}");
+        assert_eq!(t["status"], a["status"], "{task}");
+    }
+}
+
+#[test]
+fn bad_models_and_flags_are_clear_errors() {
+    let card = fixtures("torch-card-dynamo");
+    let err = plan(&["--task", "screwdriver", "--models", &card, "--json"]).unwrap_err();
+    assert!(err.contains("screwdriver") && err.contains("card"), "{err}");
+    let err = plan(&["--task", "card", "--models", "/nonexistent-dips-models"]).unwrap_err();
+    assert!(
+        err.contains("/nonexistent-dips-models/denoiser.onnx"),
+        "{err}"
+    );
+    let err = plan(&["--task", "card", "--models", &card, "--sampler", "ddim:0"]).unwrap_err();
+    assert!(err.contains("ddim:STEPS"), "{err}");
+    let err = plan(&["--task", "card", "--models", &card, "--k", "17"]).unwrap_err();
+    assert!(err.contains("16"), "{err}");
+    let err = plan(&["--task", "pen", "--models", &card]).unwrap_err();
+    assert!(err.contains("unknown task"), "{err}");
+}
