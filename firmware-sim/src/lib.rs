@@ -8,14 +8,18 @@
 //!
 //! A well-formed [`PlanRequest`] is answered with [`WireError::ModelNotLoaded`] until both
 //! models are uploaded, then planned by the kernel with the uploaded models
-//! ([`planning`]). A firmware built without planning memory ([`Firmware::new`]) answers
+//! ([`planning`]), the prior the host set for the task (`SetPrior`; the paper's until then)
+//! and the sampler settings it set (`SetSampler`; the paper's until then). A firmware built without planning memory ([`Firmware::new`]) answers
 //! [`WireError::PlannerUnavailable`] instead.
 
 pub mod planning;
 
 use std::io::{self, Read, Write};
 
-use dips_kernel::wire_convert::PlanInputs;
+use dips_kernel::diffusion::SamplerConfig;
+use dips_kernel::mode::Task;
+use dips_kernel::prior::MarkovPrior;
+use dips_kernel::wire_convert::{PlanInputs, prior_from_table, sampler_from_settings};
 use dips_wire::{
     Feed, Frame, FrameAccumulator, FromKernel, Hello, HelloAck, MAX_ENCODED_FRAME_LEN,
     MODEL_CHUNK_LEN, ModelAssembler, ModelRole, NO_REQUEST_ID, PROTOCOL_VERSION, PlanRequest,
@@ -43,6 +47,17 @@ pub struct Firmware<'m> {
     active_upload: Option<ModelRole>,
     planning: Option<PlanMemory<'m>>,
     clock: MonotonicClock,
+    /// Priors set by the host, per task (screwdriver, card); `None`: the paper's.
+    priors: [Option<MarkovPrior>; 2],
+    /// Sampler settings for every plan (the paper's until the host sets them).
+    sampler: SamplerConfig,
+}
+
+fn task_slot(task: Task) -> usize {
+    match task {
+        Task::Screwdriver => 0,
+        Task::Card => 1,
+    }
 }
 
 impl<'m> Firmware<'m> {
@@ -57,6 +72,8 @@ impl<'m> Firmware<'m> {
             active_upload: None,
             planning: None,
             clock: MonotonicClock::new(),
+            priors: [None, None],
+            sampler: SamplerConfig::default(),
         }
     }
 
@@ -141,6 +158,17 @@ impl<'m> Firmware<'m> {
                 let role = self.active_upload.take().ok_or(UploadError::NotStarted)?;
                 Ok(FromKernel::ModelLoaded(self.assembler_mut(role).end()?))
             }
+            ToKernel::SetPrior(table) => {
+                let (task, prior) =
+                    prior_from_table(table).map_err(|field| WireError::InvalidRequest { field })?;
+                self.priors[task_slot(task)] = Some(prior);
+                Ok(FromKernel::Applied)
+            }
+            ToKernel::SetSampler(settings) => {
+                self.sampler = sampler_from_settings(settings)
+                    .map_err(|field| WireError::InvalidRequest { field })?;
+                Ok(FromKernel::Applied)
+            }
         }
     }
 
@@ -165,18 +193,25 @@ impl<'m> Firmware<'m> {
 
     fn plan(&mut self, plan: &PlanRequest) -> Result<FromKernel, WireError> {
         // The kernel's own request checks (start state, goal, settings, previous mode).
-        PlanInputs::from_request(plan).map_err(|field| WireError::InvalidRequest { field })?;
+        let inputs =
+            PlanInputs::from_request(plan).map_err(|field| WireError::InvalidRequest { field })?;
         let Self {
             denoiser,
             discriminator,
             planning,
             clock,
+            priors,
+            sampler,
             ..
         } = self;
         let den = loaded(denoiser, ModelRole::Denoiser)?;
         let disc = loaded(discriminator, ModelRole::Discriminator)?;
         let memory = planning.as_mut().ok_or(WireError::PlannerUnavailable)?;
-        planning::plan(memory, den, disc, plan, clock).map(FromKernel::PlanReply)
+        let config = planning::PlanConfig {
+            prior: priors[task_slot(inputs.task)].as_ref(),
+            sampler: *sampler,
+        };
+        planning::plan(memory, den, disc, plan, &config, clock).map(FromKernel::PlanReply)
     }
 }
 

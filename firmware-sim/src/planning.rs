@@ -7,9 +7,10 @@
 //! the blobs for every request (copying the weights, a few milliseconds), so a model swapped
 //! by an upload is used by the next request.
 //!
-//! The wire does not carry a Markov prior or sampler settings yet, so the firmware uses the
-//! paper's: [`MarkovPrior::paper`] floored at the request's `p_min`, and the default
-//! [`SamplerConfig`] (DDPM, the model's diffusion steps, noise ×0.5, guidance 1.2).
+//! The prior and the sampler settings are the host's (`SetPrior`, `SetSampler`) or, until it
+//! sends them, the paper's: [`MarkovPrior::paper`] and the default [`SamplerConfig`] (DDPM
+//! over the model's diffusion steps, noise ×0.5, guidance 1.2). The prior is floored at the
+//! request's `p_min`.
 
 use std::time::Instant;
 
@@ -25,6 +26,25 @@ use dips_kernel::prior::MarkovPrior;
 use dips_kernel::search::PaperPlanner;
 use dips_kernel::wire_convert::{PlanInputs, plan_request};
 use dips_wire::{ModelFault, ModelRole, PlanReply, PlanRequest, RequestField, WireError};
+
+/// The prior and sampler a plan uses.
+#[derive(Debug, Clone, Copy)]
+pub struct PlanConfig<'a> {
+    /// The task's prior before the `p_min` floor; `None`: the paper's.
+    pub prior: Option<&'a MarkovPrior>,
+    /// The diffusion sampler's settings.
+    pub sampler: SamplerConfig,
+}
+
+impl Default for PlanConfig<'_> {
+    /// The paper's prior and sampler.
+    fn default() -> Self {
+        Self {
+            prior: None,
+            sampler: SamplerConfig::default(),
+        }
+    }
+}
 
 /// `ModelInfo::role` of a denoiser blob.
 const DENOISER_ROLE: u8 = 0;
@@ -171,6 +191,7 @@ pub fn plan(
     denoiser: &[u8],
     discriminator: &[u8],
     request: &PlanRequest,
+    config: &PlanConfig<'_>,
     clock: &mut impl Clock,
 ) -> Result<PlanReply, WireError> {
     let inputs =
@@ -182,11 +203,19 @@ pub fn plan(
     if sizes != den.dims {
         return Err(rejected(ModelRole::Discriminator, ModelFault::WrongShape));
     }
-    let prior = MarkovPrior::paper(inputs.task, inputs.config.p_min).map_err(|_| {
-        WireError::InvalidRequest {
-            field: RequestField::Settings,
-        }
+    let p_min = inputs.config.p_min;
+    let prior = match config.prior {
+        Some(prior) => prior.with_floor(p_min),
+        None => MarkovPrior::paper(inputs.task, p_min),
+    }
+    .map_err(|_| WireError::InvalidRequest {
+        field: RequestField::Settings,
     })?;
+    if prior.modes() != inputs.task.mode_count() {
+        return Err(WireError::InvalidRequest {
+            field: RequestField::Prior,
+        });
+    }
     let segments = inputs.task.mode_count() * usize::from(inputs.config.k);
     let split = split_for(&den, &disc, segments, memory.work.len())?;
     let (den_mem, rest) = memory.work.split_at_mut(split.denoiser);
@@ -197,13 +226,9 @@ pub fn plan(
         KernelEngine::new(denoiser, den_mem).map_err(|e| engine_fault(ModelRole::Denoiser, e))?;
     let disc_engine = KernelEngine::new(discriminator, disc_mem)
         .map_err(|e| engine_fault(ModelRole::Discriminator, e))?;
-    let mut sampler = DiffusionSegmentSampler::new(
-        den_engine,
-        SamplerConfig::default(),
-        sampler_buf,
-        &split.sampler,
-    )
-    .map_err(|_| rejected(ModelRole::Denoiser, ModelFault::WrongShape))?;
+    let mut sampler =
+        DiffusionSegmentSampler::new(den_engine, config.sampler, sampler_buf, &split.sampler)
+            .map_err(|_| rejected(ModelRole::Denoiser, ModelFault::WrongShape))?;
     let mut scorer = DiscriminatorScorer::new(disc_engine, scorer_buf, &split.scorer)
         .map_err(|_| rejected(ModelRole::Discriminator, ModelFault::WrongShape))?;
     plan_request(

@@ -13,11 +13,13 @@ use core::fmt;
 
 use dips_wire::{
     ApproximateReason as WireApproximate, CostToCome as WireCostToCome, MAX_PLAN_MODES,
-    PlanCapacity, PlanReply, PlanRequest, PlanStats, PlanStatus, RequestField, SearchSettings,
-    SearchVariant as WireVariant, SettingsField, Task as WireTask, WireError,
+    PlanCapacity, PlanReply, PlanRequest, PlanStats, PlanStatus, PriorTable, RequestField,
+    SamplerMethod, SamplerSettings, SearchSettings, SearchVariant as WireVariant, SettingsField,
+    Task as WireTask, WireError,
 };
 
 use crate::budget::Clock;
+use crate::diffusion::{SamplerConfig, SamplingMethod};
 use crate::mode::{MAX_STATE_DIM, ModeId, SegmentDims, Task};
 use crate::prior::MarkovPrior;
 use crate::search::config::ConfigError;
@@ -351,6 +353,45 @@ impl PlanInputs {
             prior,
         }
     }
+}
+
+/// The task and prior of a `SetPrior` table: `modes + modes²` non-negative finite values
+/// for the task's mode count, no row summing to zero (each row is renormalised). A bad table
+/// is [`RequestField::Prior`].
+pub fn prior_from_table(table: &PriorTable) -> Result<(Task, MarkovPrior), RequestField> {
+    let task = Task::from(table.task);
+    let m = task.mode_count();
+    let values = &table.probabilities;
+    if values.len() != m + m * m {
+        return Err(RequestField::Prior);
+    }
+    let (start, rest) = values.split_at(m);
+    let mut rows: [&[f32]; crate::mode::MAX_MODES] = [&[]; crate::mode::MAX_MODES];
+    for (row, chunk) in rows.iter_mut().zip(rest.chunks_exact(m)) {
+        *row = chunk;
+    }
+    let prior = MarkovPrior::from_rows(start, &rows[..m]).map_err(|_| RequestField::Prior)?;
+    Ok((task, prior))
+}
+
+/// The sampler settings of a `SetSampler` request: a DDPM noise factor in `[0, 1]`, at least
+/// one DDIM step (deterministic, η = 0), a finite guidance weight. Bad settings are
+/// [`RequestField::Sampler`]. Whether the DDIM steps fit the model is checked when sampling.
+pub fn sampler_from_settings(settings: &SamplerSettings) -> Result<SamplerConfig, RequestField> {
+    let method = match settings.method {
+        SamplerMethod::Ddpm { noise_factor } if (0.0..=1.0).contains(&noise_factor) => {
+            SamplingMethod::Ddpm { noise_factor }
+        }
+        SamplerMethod::Ddim { steps } if steps > 0 => SamplingMethod::Ddim { steps, eta: 0.0 },
+        _ => return Err(RequestField::Sampler),
+    };
+    if !settings.guidance_weight.is_finite() {
+        return Err(RequestField::Sampler);
+    }
+    Ok(SamplerConfig {
+        method,
+        guidance_weight: settings.guidance_weight,
+    })
 }
 
 /// Answer a plan request: check it ([`PlanInputs::from_request`]; a bad field is

@@ -25,10 +25,12 @@ use dips_kernel::prior::MarkovPrior;
 use dips_kernel::search::PaperPlanner;
 use dips_kernel::wire_convert::plan_request;
 use dips_onnx::{Expectation, Role, lower_file};
+use dips_wire::error::RequestField;
 use dips_wire::{
     Feed, Frame, FrameAccumulator, FromKernel, Hello, MAX_ENCODED_FRAME_LEN, ModelFault, ModelRole,
-    PROTOCOL_VERSION, PlanReply, PlanRequest, PlanStatus, SCHEMA_KEY, SearchSettings, ToKernel,
-    WireError, decode_frame, encode_frame, upload_messages,
+    PROTOCOL_VERSION, PlanReply, PlanRequest, PlanStatus, PriorTable, SCHEMA_KEY, SamplerMethod,
+    SamplerSettings, SearchSettings, ToKernel, WireError, decode_frame, encode_frame,
+    upload_messages,
 };
 
 const MODEL_CAPACITY: usize = 4 << 20;
@@ -108,6 +110,18 @@ fn session(
     work_floats: usize,
     requests: &[PlanRequest],
 ) -> Vec<FromKernel> {
+    configured_session(denoiser, discriminator, work_floats, &[], requests)
+}
+
+/// [`session`] with `config` messages after the uploads; returns the replies to `config`
+/// and `requests`.
+fn configured_session(
+    denoiser: &[u8],
+    discriminator: &[u8],
+    work_floats: usize,
+    config: &[ToKernel],
+    requests: &[PlanRequest],
+) -> Vec<FromKernel> {
     let mut den_buf = vec![0u8; MODEL_CAPACITY];
     let mut disc_buf = vec![0u8; MODEL_CAPACITY];
     let mut planner = Box::new(PaperPlanner::new());
@@ -127,19 +141,39 @@ fn session(
     messages.extend(upload_messages(ModelRole::Denoiser, denoiser).unwrap());
     messages.extend(upload_messages(ModelRole::Discriminator, discriminator).unwrap());
     let setup = messages.len();
+    messages.extend(config.iter().cloned());
     messages.extend(requests.iter().cloned().map(ToKernel::PlanRequest));
     let mut out = Vec::new();
     serve(&mut firmware, Cursor::new(frames(messages)), &mut out).unwrap();
     let all = replies(&out);
-    assert_eq!(all.len(), setup + requests.len());
+    assert_eq!(all.len(), setup + config.len() + requests.len());
     for reply in &all[..setup] {
         assert!(!matches!(reply, FromKernel::Error(_)), "setup: {reply:?}");
     }
     all[setup..].to_vec()
 }
 
-/// The same request planned in-process with the kernel engines over the same blobs.
+/// The same request planned in-process with the kernel engines over the same blobs, the
+/// paper's prior and sampler.
 fn in_process(denoiser: &[u8], discriminator: &[u8], request: &PlanRequest) -> PlanReply {
+    let prior = MarkovPrior::paper(Task::Screwdriver, request.settings.p_min).unwrap();
+    in_process_with(
+        denoiser,
+        discriminator,
+        request,
+        &prior,
+        SamplerConfig::default(),
+    )
+}
+
+/// [`in_process`] with the given prior (already floored) and sampler.
+fn in_process_with(
+    denoiser: &[u8],
+    discriminator: &[u8],
+    request: &PlanRequest,
+    prior: &MarkovPrior,
+    sampler_config: SamplerConfig,
+) -> PlanReply {
     let den_info = parse(denoiser).unwrap();
     let disc_info = parse(discriminator).unwrap();
     let segments = 3 * usize::from(request.settings.k);
@@ -150,15 +184,14 @@ fn in_process(denoiser: &[u8], discriminator: &[u8], request: &PlanRequest) -> P
     let sl = SamplerAdapterLayout::new(DenoiserEngine::dims(&den), segments, segments);
     let cl = ScorerAdapterLayout::new(disc_info.dims, segments);
     let (mut sb, mut cb) = (vec![0.0f32; sl.total()], vec![0.0f32; cl.total()]);
-    let mut sampler = DiffusionSegmentSampler::new(den, SamplerConfig::default(), &mut sb, &sl)
-        .expect("sampler adapter");
+    let mut sampler =
+        DiffusionSegmentSampler::new(den, sampler_config, &mut sb, &sl).expect("sampler adapter");
     let mut scorer = DiscriminatorScorer::new(disc, &mut cb, &cl).expect("scorer adapter");
-    let prior = MarkovPrior::paper(Task::Screwdriver, request.settings.p_min).unwrap();
     let mut planner = Box::new(PaperPlanner::new());
     plan_request(
         &mut planner,
         request,
-        &prior,
+        prior,
         &mut sampler,
         &mut scorer,
         &mut NoClock,
@@ -275,4 +308,100 @@ fn models_of_another_task_give_an_invalid_problem_reply() {
     let reply = plan_reply(&session(&den, &disc, WORK_FLOATS, &[request(1)])[0]);
     assert_eq!(reply.status, PlanStatus::InvalidProblem);
     assert_eq!(reply.stats.sampler_calls, 0);
+}
+
+#[test]
+fn the_host_sets_the_prior_and_the_sampler() {
+    let den = lowered(Task::Screwdriver, Role::Denoiser);
+    let disc = lowered(Task::Screwdriver, Role::Discriminator);
+    // Start with a thumb-middle regrasp, then alternate strictly (before the p_min floor).
+    let table = |task, probabilities: &[f32]| {
+        ToKernel::SetPrior(PriorTable {
+            task,
+            probabilities: probabilities.iter().copied().collect(),
+        })
+    };
+    let screwdriver = [
+        0.0, 0.0, 1.0, // p(c0): turn, index-regrasp, thumb-middle-regrasp
+        0.0, 0.3, 0.7, // after a turn
+        1.0, 0.0, 0.0, // after an index regrasp
+        0.5, 0.5, 0.0, // after a thumb-middle regrasp
+    ];
+    let ddim = ToKernel::SetSampler(SamplerSettings {
+        method: SamplerMethod::Ddim { steps: 8 },
+        guidance_weight: 1.5,
+    });
+    // A card prior must not touch screwdriver plans.
+    let card = table(dips_wire::Task::Card, &[1.0; 20]);
+    let config = [
+        table(dips_wire::Task::Screwdriver, &screwdriver),
+        ddim,
+        card,
+    ];
+    let req = request(9);
+    let got = configured_session(
+        &den,
+        &disc,
+        WORK_FLOATS,
+        &config,
+        std::slice::from_ref(&req),
+    );
+    assert!(
+        got[..3].iter().all(|r| *r == FromKernel::Applied),
+        "{got:?}"
+    );
+    let rows: Vec<&[f32]> = screwdriver[3..].chunks(3).collect();
+    let prior = MarkovPrior::from_rows(&screwdriver[..3], &rows)
+        .unwrap()
+        .with_floor(req.settings.p_min)
+        .unwrap();
+    let mut sampler = SamplerConfig::ddim(8);
+    sampler.guidance_weight = 1.5;
+    let want = in_process_with(&den, &disc, &req, &prior, sampler);
+    assert_eq!(
+        without_time(plan_reply(&got[3])),
+        without_time(want.clone())
+    );
+    // The settings changed the plan (the paper's prior and DDPM give another one).
+    assert_ne!(
+        without_time(want),
+        without_time(in_process(&den, &disc, &req))
+    );
+
+    // Bad tables and settings are refused and change nothing.
+    let bad = [
+        table(dips_wire::Task::Card, &screwdriver),
+        table(dips_wire::Task::Screwdriver, &[-1.0; 12]),
+        table(dips_wire::Task::Screwdriver, &[0.0; 12]),
+        table(dips_wire::Task::Screwdriver, &[f32::NAN; 12]),
+        ToKernel::SetSampler(SamplerSettings {
+            method: SamplerMethod::Ddim { steps: 0 },
+            guidance_weight: 1.2,
+        }),
+        ToKernel::SetSampler(SamplerSettings {
+            method: SamplerMethod::Ddpm { noise_factor: 1.5 },
+            guidance_weight: 1.2,
+        }),
+        ToKernel::SetSampler(SamplerSettings {
+            method: SamplerMethod::Ddpm { noise_factor: 0.5 },
+            guidance_weight: f32::INFINITY,
+        }),
+    ];
+    let got = configured_session(&den, &disc, WORK_FLOATS, &bad, std::slice::from_ref(&req));
+    let fields: Vec<_> = got[..bad.len()]
+        .iter()
+        .map(|r| match r {
+            FromKernel::Error(WireError::InvalidRequest { field }) => *field,
+            other => panic!("expected a refusal, got {other:?}"),
+        })
+        .collect();
+    use RequestField::{Prior, Sampler};
+    assert_eq!(
+        fields,
+        [Prior, Prior, Prior, Prior, Sampler, Sampler, Sampler]
+    );
+    assert_eq!(
+        without_time(plan_reply(&got[bad.len()])),
+        without_time(in_process(&den, &disc, &req))
+    );
 }

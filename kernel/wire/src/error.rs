@@ -19,6 +19,12 @@ pub enum RequestField {
     Settings,
     /// The previous mode (not a mode of the task).
     PreviousMode,
+    /// A `SetPrior` table (wrong length for the task, negative or not finite, a row of
+    /// zeros).
+    Prior,
+    /// `SetSampler` settings (no DDIM steps, noise factor outside `[0, 1]`, guidance not
+    /// finite).
+    Sampler,
 }
 
 impl fmt::Display for RequestField {
@@ -28,6 +34,8 @@ impl fmt::Display for RequestField {
             Self::Goal => "goal",
             Self::Settings => "settings",
             Self::PreviousMode => "previous_mode",
+            Self::Prior => "prior",
+            Self::Sampler => "sampler",
         })
     }
 }

@@ -19,6 +19,7 @@
 #[cfg(test)]
 extern crate std;
 
+pub mod config;
 pub mod error;
 pub mod framing;
 pub mod messages;
@@ -27,6 +28,7 @@ pub mod schema;
 pub mod size;
 pub mod upload;
 
+pub use config::{MAX_PRIOR_FLOATS, MAX_PRIOR_MODES, PriorTable, SamplerMethod, SamplerSettings};
 pub use error::{ModelFault, RequestField, WireError};
 pub use framing::{
     DecodeError, Feed, FrameAccumulator, MAX_ENCODED_FRAME_LEN, MAX_FRAME_LEN, NO_REQUEST_ID,

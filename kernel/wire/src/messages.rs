@@ -2,6 +2,7 @@
 
 use serde::{Deserialize, Serialize, de::DeserializeOwned};
 
+use crate::config::{PriorTable, SamplerSettings};
 use crate::error::WireError;
 use crate::plan::{PlanReply, PlanRequest};
 use crate::size::MaxSize;
@@ -68,6 +69,10 @@ pub enum ToKernel {
     ModelChunk(ModelChunk),
     /// Finish a model upload.
     ModelEnd,
+    /// Use this prior for the task's plans from now on.
+    SetPrior(PriorTable),
+    /// Use these sampler settings for plans from now on.
+    SetSampler(SamplerSettings),
 }
 
 /// Kernel → host messages. Append-only: never reorder, remove or change a variant.
@@ -83,6 +88,8 @@ pub enum FromKernel {
     ModelLoaded(ModelLoaded),
     /// The request (or the frame) was refused.
     Error(WireError),
+    /// A `SetPrior` or `SetSampler` took effect.
+    Applied,
 }
 
 /// A message enum of this protocol.
@@ -92,9 +99,9 @@ pub trait Message: Serialize + DeserializeOwned + MaxSize {
 }
 
 impl Message for ToKernel {
-    const VARIANT_COUNT: u32 = 5;
+    const VARIANT_COUNT: u32 = 7;
 }
 
 impl Message for FromKernel {
-    const VARIANT_COUNT: u32 = 5;
+    const VARIANT_COUNT: u32 = 6;
 }

@@ -12,8 +12,8 @@ pub const PROTOCOL_VERSION: u16 = 1;
 /// The message layout this crate encodes, as text (field order is encoding order).
 pub const SCHEMA: &str = "\
 Frame<B>{request_id:u32,body:B};\
-ToKernel{0:Hello,1:PlanRequest,2:ModelBegin,3:ModelChunk,4:ModelEnd};\
-FromKernel{0:HelloAck,1:PlanReply,2:ModelAck,3:ModelLoaded,4:Error(WireError)};\
+ToKernel{0:Hello,1:PlanRequest,2:ModelBegin,3:ModelChunk,4:ModelEnd,5:SetPrior(PriorTable),6:SetSampler(SamplerSettings)};\
+FromKernel{0:HelloAck,1:PlanReply,2:ModelAck,3:ModelLoaded,4:Error(WireError),5:Applied};\
 Hello{protocol_version:u16,schema_key:u64};\
 HelloAck{protocol_version:u16,schema_key:u64,max_frame_len_bytes:u32,model_chunk_len_bytes:u32};\
 Task{0:Screwdriver,1:Card};\
@@ -37,7 +37,9 @@ WireError{0:BadFrame,1:TooLong{len_bytes:u32,max_bytes:u32},2:DecodeFailed,3:Unk
 5:HandshakeRequired,6:Busy,7:Upload(UploadError),8:ModelNotLoaded{role:ModelRole},9:PlannerUnavailable,\
 10:InvalidRequest{field:RequestField},11:ModelRejected{role:ModelRole,fault:ModelFault}};\
 ModelFault{0:Invalid,1:WrongShape,2:TooLarge{needed_floats:u32,capacity_floats:u32}};\
-RequestField{0:StartState,1:Goal,2:Settings,3:PreviousMode};\
+RequestField{0:StartState,1:Goal,2:Settings,3:PreviousMode,4:Prior,5:Sampler};\
+PriorTable{task:Task,probabilities:Vec<f32,20>};\
+SamplerMethod{0:Ddpm{noise_factor:f32},1:Ddim{steps:u16}};SamplerSettings{method:SamplerMethod,guidance_weight:f32};\
 UploadError{0:NotStarted,1:TooLarge{total_len_bytes:u32,capacity_bytes:u32},\
 2:BadOffset{expected_offset_bytes:u32,got_offset_bytes:u32},3:Overflow{end_offset_bytes:u32,total_len_bytes:u32},\
 4:Incomplete{received_bytes:u32,total_len_bytes:u32},5:CrcMismatch{expected_crc32:u32,computed_crc32:u32}}";

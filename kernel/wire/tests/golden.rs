@@ -40,6 +40,17 @@ fn canonical_to_kernel() -> std::vec::Vec<ToKernel> {
             bytes: Vec::from_slice(&[0, 1, 2, 0xFF]).unwrap(),
         }),
         ToKernel::ModelEnd,
+        ToKernel::SetPrior(PriorTable {
+            task: Task::Screwdriver,
+            probabilities: Vec::from_slice(&[
+                1.0, 0.0, 0.0, 0.0, 0.5, 0.5, 0.5, 0.0, 0.5, 0.5, 0.5, 0.0,
+            ])
+            .unwrap(),
+        }),
+        ToKernel::SetSampler(SamplerSettings {
+            method: SamplerMethod::Ddim { steps: 300 },
+            guidance_weight: 1.2,
+        }),
     ]
 }
 
@@ -81,6 +92,7 @@ fn canonical_from_kernel() -> std::vec::Vec<FromKernel> {
             kernel_schema_key: 3,
             host_schema_key: 4,
         }),
+        FromKernel::Applied,
     ]
 }
 
@@ -113,6 +125,9 @@ fn canonical_errors() -> std::vec::Vec<WireError> {
         WireError::InvalidRequest {
             field: RequestField::PreviousMode,
         },
+        WireError::InvalidRequest {
+            field: RequestField::Sampler,
+        },
         WireError::ModelRejected {
             role: ModelRole::Denoiser,
             fault: ModelFault::TooLarge {
@@ -123,21 +138,24 @@ fn canonical_errors() -> std::vec::Vec<WireError> {
     ]
 }
 
-const GOLDEN_TO_KERNEL: [&str; 5] = [
+const GOLDEN_TO_KERNEL: [&str; 7] = [
     "02070b01ef9bafcdf8acd1910100",
     "03070102040101023f010380bf01010101010d803f920a86bf10076666663f04401c46010d7a44cdcccc3d904ee0a7122a0103010200",
     "0b070201e807a6f2d0df0c00",
     "060703800404040102ff00",
     "03070400",
+    "030705020c0103803f0101010101010101010101010101023f0101023f0101023f010101010101023f0101023f0101023f0101010100",
+    "0a070601ac029a99993f00",
 ];
-const GOLDEN_FROM_KERNEL: [&str; 5] = [
+const GOLDEN_FROM_KERNEL: [&str; 6] = [
     "02070f01ef9bafcdf8acd191019c04800400",
     "05070103020301020103803e01010abf010107150707d20900",
     "030702058004e80700",
     "03070308e807a6f2d0df0c00",
     "080704040102030400",
+    "03070500",
 ];
-const GOLDEN_ERRORS: [&str; 12] = [
+const GOLDEN_ERRORS: [&str; 13] = [
     "0307040100",
     "08070401d00f9c0400",
     "0407040200",
@@ -149,9 +167,10 @@ const GOLDEN_ERRORS: [&str; 12] = [
     "050704080100",
     "0407040900",
     "0507040a0300",
+    "0507040a0500",
     "0407040b0502ac020200",
 ];
-const GOLDEN_SCHEMA_KEY: u64 = 0x499e_47a9_da21_c2dc;
+const GOLDEN_SCHEMA_KEY: u64 = 0xa8f8_def1_4013_f336;
 
 #[test]
 fn schema_key_is_pinned() {

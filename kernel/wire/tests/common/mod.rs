@@ -159,7 +159,7 @@ pub fn wire_error() -> impl Strategy<Value = WireError> {
         any::<u64>(),
         upload_error(),
         role(),
-        0u8..11,
+        0u8..12,
     )
         .prop_map(|(a, b, v, key, upload, role, which)| match which {
             0 => WireError::BadFrame,
@@ -180,13 +180,26 @@ pub fn wire_error() -> impl Strategy<Value = WireError> {
             7 => WireError::Upload(upload),
             8 => WireError::ModelNotLoaded { role },
             9 => WireError::PlannerUnavailable,
-            _ => WireError::InvalidRequest {
+            10 => WireError::InvalidRequest {
                 field: [
                     RequestField::StartState,
                     RequestField::Goal,
                     RequestField::Settings,
                     RequestField::PreviousMode,
-                ][(a % 4) as usize],
+                    RequestField::Prior,
+                    RequestField::Sampler,
+                ][(a % 6) as usize],
+            },
+            _ => WireError::ModelRejected {
+                role,
+                fault: match a % 3 {
+                    0 => ModelFault::Invalid,
+                    1 => ModelFault::WrongShape,
+                    _ => ModelFault::TooLarge {
+                        needed_floats: a,
+                        capacity_floats: b,
+                    },
+                },
             },
         })
 }
@@ -216,6 +229,24 @@ pub fn to_kernel() -> impl Strategy<Value = ToKernel> {
                 bytes: Vec::from_slice(&bytes).expect("bounded"),
             })),
         Just(ToKernel::ModelEnd),
+        (task(), f32_vec::<MAX_PRIOR_FLOATS>()).prop_map(|(task, probabilities)| {
+            ToKernel::SetPrior(PriorTable {
+                task,
+                probabilities,
+            })
+        }),
+        (any::<bool>(), finite_f32(), any::<u16>(), finite_f32()).prop_map(
+            |(ddpm, noise_factor, steps, guidance_weight)| {
+                ToKernel::SetSampler(SamplerSettings {
+                    method: if ddpm {
+                        SamplerMethod::Ddpm { noise_factor }
+                    } else {
+                        SamplerMethod::Ddim { steps }
+                    },
+                    guidance_weight,
+                })
+            }
+        ),
     ]
 }
 
@@ -245,6 +276,7 @@ pub fn from_kernel() -> impl Strategy<Value = FromKernel> {
             })
         }),
         wire_error().prop_map(FromKernel::Error),
+        Just(FromKernel::Applied),
     ]
 }
 
