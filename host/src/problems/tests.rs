@@ -137,20 +137,43 @@ fn counts_match_the_spec_bookkeeping() {
     assert_eq!(p.n_eq(0), 24);
     assert_eq!(p.n_ineq(0), 27);
     assert_eq!(p.row_dim(), 15 + 12 + 9);
-    // Index regrasp: 2 contact fingers, 3 torques, 3 pinned object coordinates, 4 free-motion
-    // rows; two clearance rows (end and start pose of the step) before the last step, the
-    // terminal contact at the last.
+    // Index regrasp from the default grasp (every finger in contact): 2 contact fingers, 3
+    // torques, 3 pinned object coordinates, 4 free-motion rows, and 2 lift-off rows in the
+    // first step only; two clearance rows (end and start pose of the step) before the last
+    // step, the terminal contact at the last.
     let p = AllegroProblem::new(&hand, &spec(Mode::IndexRegrasp, 12)).expect("valid spec");
-    assert_eq!(p.n_eq(0), 14 + 3 + 3 + 4);
+    assert_eq!(p.n_eq(0), 14 + 3 + 3 + 4 + 2);
+    assert_eq!(p.n_eq(1), 14 + 3 + 3 + 4);
     assert_eq!(p.n_eq(11), 14 + 3 + 3 + 4 + 1);
     assert_eq!(p.n_ineq(0), 18 + 2);
     assert_eq!(p.n_ineq(11), 18);
-    // Thumb-middle regrasp: the index alone, the yaw pinned, two regrasping fingers.
-    let p = AllegroProblem::new(&hand, &spec(Mode::ThumbMiddleRegrasp, 12)).expect("valid spec");
-    assert_eq!(p.n_eq(0), 7 + 3 + 1 + 8);
+    // Thumb-middle regrasp: the index alone, the yaw pinned, two regrasping fingers, lift-off
+    // rows for those of them touching the handle at the start.
+    let s = spec(Mode::ThumbMiddleRegrasp, 12);
+    let p = AllegroProblem::new(&hand, &s).expect("valid spec");
+    let touching = [1, 2]
+        .into_iter()
+        .filter(|&i| {
+            let q = [
+                s.start[4 * i],
+                s.start[4 * i + 1],
+                s.start[4 * i + 2],
+                s.start[4 * i + 3],
+            ];
+            p.finger_sdf(i, &q, &[0.0; 3]) < super::allegro::LIFT_OFF_CONTACT
+        })
+        .count();
+    assert!(touching >= 1);
+    assert_eq!(p.n_eq(0), 7 + 3 + 1 + 8 + 2 * touching);
     assert_eq!(p.n_eq(11), 7 + 3 + 1 + 8 + 2);
     assert_eq!(p.n_ineq(0), 9 + 4);
-    // Card pushes pin nothing; the middle finger regrasps while the index pushes.
+    // A regrasping finger that starts clear of the object has no lift-off rows.
+    let mut lifted = spec(Mode::IndexRegrasp, 12);
+    lifted.start[2] -= 0.4;
+    let p = AllegroProblem::new(&hand, &lifted).expect("valid spec");
+    assert_eq!(p.n_eq(0), 14 + 3 + 3 + 4);
+    // Card pushes pin nothing; the middle finger regrasps (no lift-off rows for the card)
+    // while the index pushes.
     let p = AllegroProblem::new(&hand, &spec(Mode::CardIndex, 8)).expect("valid spec");
     assert_eq!(p.n_eq(0), 7 + 4 + 4);
     assert_eq!(p.n_ineq(0), 9 + 2);
