@@ -9,8 +9,9 @@
 //! A well-formed [`PlanRequest`] is answered with [`WireError::ModelNotLoaded`] until both
 //! models are uploaded, then planned by the kernel with the uploaded models
 //! ([`planning`]), the prior the host set for the task (`SetPrior`; the paper's until then)
-//! and the sampler settings it set (`SetSampler`; the paper's until then). A firmware built without planning memory ([`Firmware::new`]) answers
-//! [`WireError::PlannerUnavailable`] instead.
+//! and the sampler settings it set (`SetSampler`; the paper's until then). A firmware built
+//! without planning memory ([`Firmware::new`]) answers [`WireError::PlannerUnavailable`]
+//! instead.
 
 pub mod planning;
 

@@ -36,16 +36,6 @@ pub struct PlanConfig<'a> {
     pub sampler: SamplerConfig,
 }
 
-impl Default for PlanConfig<'_> {
-    /// The paper's prior and sampler.
-    fn default() -> Self {
-        Self {
-            prior: None,
-            sampler: SamplerConfig::default(),
-        }
-    }
-}
-
 /// `ModelInfo::role` of a denoiser blob.
 const DENOISER_ROLE: u8 = 0;
 /// `ModelInfo::role` of a discriminator blob.

@@ -18,7 +18,7 @@ use dips_kernel::engine::DenoiserEngine;
 use dips_kernel::mode::Task;
 use dips_kernel::prior::MarkovPrior;
 use dips_kernel::search::{PaperPlanner, Problem, SearchConfig};
-use dips_kernel::task::Objective;
+use dips_kernel::task::{CARD_GOAL_Y, Objective, ScrewdriverObjective};
 use dips_onnx::{AnyEngine, EngineKind, Expectation, Role};
 use serde_json::json;
 
@@ -52,7 +52,7 @@ pub struct PlanArgs {
     #[arg(long, value_enum, default_value_t = PlanEngine::Kernel)]
     pub engine: PlanEngine,
     /// Search goal: screwdriver yaw (rad; default the start yaw − π/3), card y (m; default
-    /// the start y − 0.06).
+    /// −0.06, the paper's).
     #[arg(long, allow_hyphen_values = true)]
     pub goal: Option<f32>,
     /// Particles per node (at most 16).
@@ -140,17 +140,15 @@ pub fn run(args: PlanArgs) -> anyhow::Result<()> {
         .into_iter()
         .map(|v| v as f32)
         .collect();
-    let goal = args.goal.unwrap_or(match task {
-        Task::Screwdriver => {
-            let n = start.len();
-            start[n - 1].atan2(start[n - 2]) - std::f32::consts::FRAC_PI_3
+    let goal = match (args.goal, task) {
+        (Some(goal), _) => goal,
+        (None, Task::Screwdriver) => {
+            ScrewdriverObjective::from_state(&start)
+                .ok_or_else(|| anyhow!("the world's screwdriver state is too short"))?
+                .goal_yaw
         }
-        Task::Card => {
-            let n = start.len();
-            // The card's y is the second object column, before cos and sin of its heading.
-            start[n - 3] + crate::scenes::card::GOAL_DY as f32
-        }
-    });
+        (None, Task::Card) => CARD_GOAL_Y,
+    };
     let objective =
         Objective::for_goal(task, &start, goal).ok_or_else(|| anyhow!("--goal must be finite"))?;
     let prior = MarkovPrior::paper(task, config.p_min)

@@ -598,6 +598,37 @@ impl AllegroProblem {
         [t1.dot(&rel), t2.dot(&rel)]
     }
 
+    /// Write finger `i`'s two rolling rows ([`Self::rolling_terms`]) of the step from `prev`
+    /// through `row` into equality rows `e` and `e + 1`.
+    fn rolling_rows(
+        &self,
+        i: usize,
+        prev: &[f64],
+        row: &[f64],
+        e: usize,
+        out: &mut StepConstraints,
+    ) {
+        let (ds, nf) = (self.state_dim(), self.nf);
+        let width = ds + self.row_dim();
+        // Columns: q_t, o_t (previous state), q_{t+1}, o_{t+1} (row).
+        let map: [usize; 14] = std::array::from_fn(|k| match k {
+            0..4 => 4 * i + k,
+            4..7 => 4 * nf + k - 4,
+            7..11 => ds + 4 * i + k - 7,
+            _ => ds + 4 * nf + k - 11,
+        });
+        let vals: [f64; 14] = std::array::from_fn(|k| step_value(prev, row, ds, map[k]));
+        for (r, term) in self.rolling_terms(i, &vals).iter().enumerate() {
+            out.eq[e + r] = term.v;
+            scatter(
+                &mut out.jac_eq[(e + r) * width..(e + r + 1) * width],
+                &map,
+                &term.d,
+                1.0,
+            );
+        }
+    }
+
     /// Terms of contact finger `i` at `s_{t+1}` over `[q_{t+1} (4), o_{t+1} (3), f (3)]`.
     fn next_terms(&self, i: usize, vals: &[f64; 10]) -> NextTerms {
         let v: [Dual<10>; 10] = seed(vals);
@@ -733,6 +764,11 @@ impl<const N: usize> Lift for Dual<N> {
 }
 
 /// Add `w·d[j]` to `row[map[j]]`.
+/// The value of step column `c` (the previous state's `ds` columns, then the row's).
+fn step_value(prev: &[f64], row: &[f64], ds: usize, c: usize) -> f64 {
+    if c < ds { prev[c] } else { row[c - ds] }
+}
+
 fn scatter(row: &mut [f64], map: &[usize], d: &[f64], w: f64) {
     for (&c, &v) in map.iter().zip(d) {
         row[c] += w * v;
@@ -785,30 +821,16 @@ impl Problem for AllegroProblem {
         let mut wrench_rows = [0.0f64; 3];
         for i in 0..nf {
             let Some(s) = self.slot[i] else { continue };
-            // Columns: q_t, o_t (previous state), q_{t+1}, o_{t+1}, Δq, f (row).
-            let mut map14 = [0usize; 14];
+            // Columns: q_{t+1}, o_{t+1}, f (row).
             let mut map10 = [0usize; 10];
             for k in 0..4 {
-                map14[k] = 4 * i + k;
-                map14[7 + k] = ds + 4 * i + k;
                 map10[k] = ds + 4 * i + k;
             }
             for k in 0..3 {
-                map14[4 + k] = 4 * nf + k;
-                map14[11 + k] = ds + 4 * nf + k;
                 map10[4 + k] = ds + 4 * nf + k;
                 map10[7 + k] = ds + self.force_col(s, k);
             }
-            let gather = |map: &[usize], out: &mut [f64]| {
-                for (o, &c) in out.iter_mut().zip(map) {
-                    *o = if c < ds { prev[c] } else { row[c - ds] };
-                }
-            };
-            let mut v14 = [0.0; 14];
-            gather(&map14, &mut v14);
-            let mut v10 = [0.0; 10];
-            gather(&map10, &mut v10);
-            let roll = self.rolling_terms(i, &v14);
+            let v10: [f64; 10] = std::array::from_fn(|k| step_value(prev, row, ds, map10[k]));
             let next = self.next_terms(i, &v10);
             let put =
                 |out: &mut StepConstraints, r: usize, value: f64, map: &[usize], d: &[f64]| {
@@ -816,8 +838,7 @@ impl Problem for AllegroProblem {
                     scatter(&mut out.jac_eq[r * width..(r + 1) * width], map, d, 1.0);
                 };
             put(out, e, next.sdf.v, &map10, &next.sdf.d);
-            put(out, e + 1, roll[0].v, &map14, &roll[0].d);
-            put(out, e + 2, roll[1].v, &map14, &roll[1].d);
+            self.rolling_rows(i, prev, row, e + 1, out);
             for k in 0..4 {
                 let r = e + 3 + k;
                 let (qc, dqc) = (4 * i + k, ds + self.dq_col(i, k));
@@ -934,28 +955,7 @@ impl Problem for AllegroProblem {
             // Lift-off along the normal: the finger's contact point has no tangential motion
             // relative to the object in the first step (the rolling rows of a contact finger).
             for i in (0..nf).filter(|&i| self.lift_off[i]) {
-                let mut map14 = [0usize; 14];
-                for k in 0..4 {
-                    map14[k] = 4 * i + k;
-                    map14[7 + k] = ds + 4 * i + k;
-                }
-                for k in 0..3 {
-                    map14[4 + k] = 4 * nf + k;
-                    map14[11 + k] = ds + 4 * nf + k;
-                }
-                let v14: [f64; 14] = std::array::from_fn(|k| {
-                    let c = map14[k];
-                    if c < ds { prev[c] } else { row[c - ds] }
-                });
-                for (r, term) in self.rolling_terms(i, &v14).iter().enumerate() {
-                    out.eq[e + r] = term.v;
-                    scatter(
-                        &mut out.jac_eq[(e + r) * width..(e + r + 1) * width],
-                        &map14,
-                        &term.d,
-                        1.0,
-                    );
-                }
+                self.rolling_rows(i, prev, row, e, out);
                 e += 2;
             }
         }
