@@ -1,8 +1,18 @@
 //! `dips bench sim --json`: time of one action (all sub-steps) in each scene.
 
-use clap::Args;
+use clap::{Args, ValueEnum};
 
-use crate::world::bench;
+use crate::world::bench::{self, ContactModel};
+
+/// The contact model to time.
+#[derive(Debug, Clone, Copy, ValueEnum)]
+pub enum ContactModelArg {
+    /// The world's defaults.
+    Default,
+    /// The model before issue 10 (friction cone on every candidate, step command), for
+    /// comparison.
+    PlainCone,
+}
 
 /// `dips bench sim` arguments.
 #[derive(Debug, Args)]
@@ -13,11 +23,18 @@ pub struct BenchSimArgs {
     /// Actions timed per scenario.
     #[arg(long, default_value_t = 24)]
     pub actions: usize,
+    /// Contact model to time.
+    #[arg(long, value_enum, default_value = "default")]
+    pub contact_model: ContactModelArg,
 }
 
 /// Run the benchmark and print its figures.
 pub fn main(args: BenchSimArgs) -> anyhow::Result<()> {
-    let report = bench::run(args.actions.max(1))?;
+    let model = match args.contact_model {
+        ContactModelArg::Default => ContactModel::Default,
+        ContactModelArg::PlainCone => ContactModel::PlainCone,
+    };
+    let report = bench::run(args.actions.max(1), model)?;
     let text = if args.json {
         serde_json::to_string(&report)?
     } else {

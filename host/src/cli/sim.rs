@@ -280,7 +280,8 @@ fn run(args: &RunArgs) -> Result<(), SimCliError> {
         Some(p) => HandModel::load(p).map_err(anyhow::Error::from)?,
         None => HandModel::allegro_v4(),
     };
-    let mut world = World::with_model(scene, hand, WorldParams::for_scene(scene));
+    let mut world = World::with_model(scene, hand, WorldParams::for_scene(scene))
+        .map_err(anyhow::Error::from)?;
     let (traj, failure) = match &args.log {
         None => run_commands(&mut world, &dq),
         Some(log) => {

@@ -301,7 +301,8 @@ pub fn replay(path: &Path) -> Result<ReplayReport, HandError> {
         .params
         .clone()
         .unwrap_or_else(|| WorldParams::for_scene(scene));
-    let mut world = World::with_model(scene, HandModel::allegro_v4(), params);
+    let mut world = World::with_model(scene, HandModel::allegro_v4(), params)
+        .map_err(|e| fmt(1, e.to_string()))?;
     world.set_joints(&header.joints);
     world.set_object(header.object.to_state(scene));
     let mut states = vec![world.state()];

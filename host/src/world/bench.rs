@@ -4,7 +4,8 @@ use std::time::Instant;
 
 use serde::Serialize;
 
-use super::{World, WorldError, scripted};
+use super::{CommandProfile, ConeActivation, World, WorldError, WorldParams, scripted};
+use crate::kinematics::HandModel;
 use crate::scenes::SceneKind;
 
 /// Figures for one scripted scenario.
@@ -39,6 +40,8 @@ pub struct ScenarioTiming {
 pub struct SimBench {
     /// Benchmark name.
     pub bench: String,
+    /// The contact model timed.
+    pub contact_model: ContactModel,
     /// Target time per action (ms).
     pub target_ms: f64,
     /// Scenarios.
@@ -50,19 +53,45 @@ fn median(v: &mut [f64]) -> f64 {
     if v.is_empty() { 0.0 } else { v[v.len() / 2] }
 }
 
+/// Which contact model the benchmark times.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum ContactModel {
+    /// The world's defaults.
+    Default,
+    /// The model before issue 10, for comparison: friction on every candidate within the
+    /// contact margin and the command applied as a step ([`ConeActivation::All`],
+    /// [`CommandProfile::Step`]).
+    PlainCone,
+}
+
+impl ContactModel {
+    /// The world parameters of this model for a scene.
+    pub fn params(self, scene: SceneKind) -> WorldParams {
+        let mut p = WorldParams::for_scene(scene);
+        if self == ContactModel::PlainCone {
+            p.cone_activation = ConeActivation::All;
+            p.command_profile = CommandProfile::Step;
+        }
+        p
+    }
+}
+
 fn time_scenario(
     scene: SceneKind,
     manipulate: bool,
     actions: usize,
+    model: ContactModel,
 ) -> Result<ScenarioTiming, WorldError> {
-    let mut world = World::new(scene);
+    let fresh = || World::with_model(scene, HandModel::allegro_v4(), model.params(scene));
+    let mut world = fresh()?;
     let mut times = Vec::with_capacity(actions);
     let (mut subs, mut solves, mut iters) = (0usize, 0u64, 0u64);
     let (mut pen, mut flagged): (f64, usize) = (0.0, 0);
     for k in 0..actions {
         // Restart periodically so the manipulation stays in the scene's working range.
         if manipulate && k % 6 == 0 {
-            world = World::new(scene);
+            world = fresh()?;
         }
         let dq = match (scene, manipulate) {
             (_, false) => vec![0.0; scene.action_dim()],
@@ -96,16 +125,17 @@ fn time_scenario(
     })
 }
 
-/// Time `actions` actions of each scenario in each scene.
-pub fn run(actions: usize) -> Result<SimBench, WorldError> {
+/// Time `actions` actions of each scenario in each scene under a contact model.
+pub fn run(actions: usize, model: ContactModel) -> Result<SimBench, WorldError> {
     let mut scenarios = Vec::new();
     for scene in SceneKind::ALL {
         for manipulate in [false, true] {
-            scenarios.push(time_scenario(scene, manipulate, actions)?);
+            scenarios.push(time_scenario(scene, manipulate, actions, model)?);
         }
     }
     Ok(SimBench {
         bench: "sim".into(),
+        contact_model: model,
         target_ms: 5.0,
         scenarios,
     })

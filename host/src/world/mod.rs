@@ -45,8 +45,16 @@ pub struct WorldParams {
     /// Mass-regularisation scale `s`: the largest object mass entry becomes `kp/s` (qsim's
     /// `unactuated_mass_scale`).
     pub mass_scale: f64,
-    /// Contacts with signed distance up to this are given a friction cone (m).
+    /// Contacts with signed distance up to this are candidates of the contact step (m).
     pub contact_margin: f64,
+    /// Which candidates get friction under [`FrictionModel::Anitescu`] ([`ConeActivation::All`]
+    /// for logs written before this field existed).
+    #[serde(default = "legacy_cone_activation")]
+    pub cone_activation: ConeActivation,
+    /// How the joint controller's setpoint moves during an action ([`CommandProfile::Step`]
+    /// for logs written before this field existed).
+    #[serde(default = "legacy_command_profile")]
+    pub command_profile: CommandProfile,
     /// Finger–object friction coefficient.
     pub finger_friction: f64,
     /// Card–table friction coefficient (card scene).
@@ -80,6 +88,43 @@ pub struct WorldParams {
     /// `friction_not_converged`). Off by default: on the card the cone's drag is worse than
     /// an unsettled iterate (CSVTO's single-finger pushes lose their centimetre with it).
     pub staggered_fallback: bool,
+}
+
+fn legacy_cone_activation() -> ConeActivation {
+    ConeActivation::All
+}
+
+fn legacy_command_profile() -> CommandProfile {
+    CommandProfile::Step
+}
+
+/// Which contact candidates get a friction cone under [`FrictionModel::Anitescu`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum ConeActivation {
+    /// Every candidate within [`WorldParams::contact_margin`] (the plain Anitescu model). A
+    /// candidate that slides must separate by μ·slip, so a finger gliding past the object
+    /// without pressing drags it along (`docs/world.md`).
+    All,
+    /// Only candidates that press: each sub-step is first solved with frictionless
+    /// non-penetration rows, and the candidates that carry a normal force there get the cone
+    /// in the solve that is applied; the others keep their frictionless row. A finger that
+    /// does not press cannot push the object sideways. Two solves per sub-step where some
+    /// candidate presses, one where none does.
+    Pressing,
+}
+
+/// How the task fingers' setpoint moves within one action.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum CommandProfile {
+    /// The setpoint moves linearly from the joints measured at the start of the action to the
+    /// command, reaching it at the last sub-step, as a position controller tracks an
+    /// interpolated target. A free finger still ends the action at its command.
+    Ramp,
+    /// The setpoint jumps to the command at the first sub-step (a step input): a free finger
+    /// makes its whole move in the first sub-step.
+    Step,
 }
 
 /// Friction formulation of the contact step.
@@ -120,6 +165,8 @@ impl WorldParams {
             joint_damping: 0.0,
             mass_scale: 5.0,
             contact_margin: 0.02,
+            cone_activation: ConeActivation::Pressing,
+            command_profile: CommandProfile::Ramp,
             finger_friction: scene.finger_friction(),
             table_friction: table,
             finger_table_friction: card::FINGER_TABLE_FRICTION,
@@ -139,7 +186,70 @@ impl WorldParams {
 
     /// Sub-step length (s).
     pub fn h(&self) -> f64 {
-        self.action_duration / self.substeps.max(1) as f64
+        self.action_duration / self.substeps as f64
+    }
+
+    /// Check that every parameter is usable: positive durations, counts and stiffness,
+    /// non-negative margins, damping and friction, finite numbers.
+    pub fn validate(&self) -> Result<(), WorldError> {
+        let bad = |name: &'static str, value: f64, allowed: &'static str| {
+            Err(WorldError::Params {
+                name,
+                value,
+                allowed,
+            })
+        };
+        let positive = [
+            ("action_duration", self.action_duration),
+            ("kp", self.kp),
+            ("early_stop", self.early_stop),
+        ];
+        for (name, v) in positive {
+            if !(v.is_finite() && v > 0.0) {
+                return bad(name, v, "a finite number > 0");
+            }
+        }
+        let non_negative = [
+            ("joint_damping", self.joint_damping),
+            ("contact_margin", self.contact_margin),
+            ("finger_friction", self.finger_friction),
+            ("table_friction", self.table_friction),
+            ("finger_table_friction", self.finger_table_friction),
+            ("damping[0]", self.damping[0]),
+            ("damping[1]", self.damping[1]),
+            ("damping[2]", self.damping[2]),
+            ("gravity", self.gravity),
+            ("staggered_tolerance", self.staggered_tolerance),
+            (
+                "staggered_relative_tolerance",
+                self.staggered_relative_tolerance,
+            ),
+            ("geometry_tolerance", self.geometry_tolerance),
+        ];
+        for (name, v) in non_negative {
+            if !(v.is_finite() && v >= 0.0) {
+                return bad(name, v, "a finite number ≥ 0");
+            }
+        }
+        // The Anitescu cone divides by μ.
+        if self.finger_friction == 0.0 {
+            return bad("finger_friction", 0.0, "a finite number > 0");
+        }
+        // `mass_scale` ≤ 0 means "true mass" (see `regulariser`); only NaN is meaningless.
+        if self.mass_scale.is_nan() {
+            return bad("mass_scale", self.mass_scale, "a number (≤ 0: true mass)");
+        }
+        let counts = [
+            ("substeps", self.substeps),
+            ("staggered_iterations", self.staggered_iterations),
+            ("solver_max_iter", self.solver_max_iter as usize),
+        ];
+        for (name, v) in counts {
+            if v == 0 {
+                return bad(name, 0.0, "a whole number ≥ 1");
+            }
+        }
+        Ok(())
     }
 }
 
@@ -364,6 +474,16 @@ pub enum WorldError {
         /// Clarabel's status.
         status: String,
     },
+    /// A world parameter is out of range.
+    #[error("world parameter {name} = {value} is not allowed: it must be {allowed}")]
+    Params {
+        /// Parameter name (a [`WorldParams`] field).
+        name: &'static str,
+        /// The given value.
+        value: f64,
+        /// What is allowed.
+        allowed: &'static str,
+    },
     /// Clarabel rejected the problem data (a defect in the world).
     #[error("contact program rejected by Clarabel: {0}")]
     Setup(String),
@@ -401,15 +521,25 @@ fn check_finite(what: &'static str, v: &[f64]) -> Result<(), WorldError> {
 impl World {
     /// A scene at its default joints and initial object pose, with default parameters.
     pub fn new(scene: SceneKind) -> World {
-        World::with_model(
+        World::build(
             scene,
             HandModel::allegro_v4(),
             WorldParams::for_scene(scene),
         )
     }
 
-    /// A scene with a given hand description and parameters.
-    pub fn with_model(scene: SceneKind, hand: HandModel, params: WorldParams) -> World {
+    /// A scene with a given hand description and parameters (checked with
+    /// [`WorldParams::validate`]).
+    pub fn with_model(
+        scene: SceneKind,
+        hand: HandModel,
+        params: WorldParams,
+    ) -> Result<World, WorldError> {
+        params.validate()?;
+        Ok(World::build(scene, hand, params))
+    }
+
+    fn build(scene: SceneKind, hand: HandModel, params: WorldParams) -> World {
         let joints = scene.default_joints();
         let (object_body, table) = match scene {
             SceneKind::Screwdriver => (Body::screwdriver(), None),
@@ -661,7 +791,21 @@ impl World {
             self.last_contacts.clone(),
             self.normal_memory.clone(),
         );
-        for substep in 0..self.params.substeps.max(1) {
+        // The controller's setpoint per sub-step (see `CommandProfile`).
+        let q_start = self.task_joints();
+        let substeps = self.params.substeps;
+        let ramping = self.params.command_profile == CommandProfile::Ramp && q_cmd != q_start;
+        for substep in 0..substeps {
+            let setpoint: Vec<f64> = if ramping {
+                let s = (substep + 1) as f64 / substeps as f64;
+                q_start
+                    .iter()
+                    .zip(&q_cmd)
+                    .map(|(a, b)| a + s * (b - a))
+                    .collect()
+            } else {
+                q_cmd.clone()
+            };
             let SubstepResult {
                 dx,
                 contacts,
@@ -671,7 +815,7 @@ impl World {
                 unconverged,
                 fell_back,
                 memory,
-            } = match self.solve_substep(&q_cmd, substep) {
+            } = match self.solve_substep(&setpoint, substep) {
                 Ok(v) => v,
                 Err(e) => {
                     (
@@ -699,8 +843,9 @@ impl World {
             self.apply_increment(&dx);
             self.last_contacts = contacts;
             self.normal_memory = memory;
+            // Settled, and the setpoint will not move any more.
             let norm = dx.iter().map(|v| v * v).sum::<f64>().sqrt();
-            if norm < self.params.early_stop {
+            if norm < self.params.early_stop && (!ramping || substep + 1 == substeps) {
                 break;
             }
         }
@@ -824,7 +969,7 @@ impl World {
         cands
     }
 
-    fn solve_substep(&self, q_cmd: &[f64], substep: usize) -> Result<SubstepResult, WorldError> {
+    fn solve_substep(&self, setpoint: &[f64], substep: usize) -> Result<SubstepResult, WorldError> {
         let fingers = self.scene.task_fingers();
         let n_a = 4 * fingers.len();
         let n_u = match self.object {
@@ -838,7 +983,7 @@ impl World {
         let q_now = self.task_joints();
         for i in 0..n_a {
             p[(i, i)] = self.params.kp + self.params.joint_damping / self.params.h();
-            c[i] = -self.params.kp * (q_cmd[i] - q_now[i]);
+            c[i] = -self.params.kp * (setpoint[i] - q_now[i]);
         }
         p.view_mut((n_a, n_a), (n_u, n_u)).copy_from(&block);
         for (i, f) in force_u.iter().enumerate() {
@@ -885,27 +1030,52 @@ impl World {
         let mut solves = 0;
         let mut unconverged = None;
         let mut worst_status = SolverStatus::Solved;
-        let anitescu = || -> Result<(socp::Solution, Vec<contacts::Candidate>), WorldError> {
+        let anitescu = || -> Result<(socp::Solution, Vec<contacts::Candidate>, u32), WorldError> {
             let cands = self.candidates_at(&vec![0.0; n]);
             let rows: Vec<socp::ConeRow> = cands.iter().map(|c| c.row.clone()).collect();
-            let prog = socp::Program {
-                p: &p,
-                c: &c,
-                cones: &rows,
-                bounds: &bounds,
-                max_iter: self.params.solver_max_iter,
-                friction: socp::FrictionForm::Anitescu,
+            let solve_with = |cone: &[bool]| -> Result<socp::Solution, WorldError> {
+                let sol = socp::solve(&socp::Program {
+                    p: &p,
+                    c: &c,
+                    cones: &rows,
+                    bounds: &bounds,
+                    max_iter: self.params.solver_max_iter,
+                    friction: socp::FrictionForm::Anitescu { cone },
+                })
+                .map_err(WorldError::Setup)?;
+                check(&sol)?;
+                Ok(sol)
             };
-            let sol = socp::solve(&prog).map_err(WorldError::Setup)?;
-            check(&sol)?;
-            Ok((sol, cands))
+            match self.params.cone_activation {
+                ConeActivation::All => Ok((solve_with(&vec![true; rows.len()])?, cands, 1)),
+                ConeActivation::Pressing => {
+                    let probe = solve_with(&vec![false; rows.len()])?;
+                    let pressing: Vec<bool> = probe
+                        .normal_forces
+                        .iter()
+                        .map(|f| *f > PRESSING_FORCE)
+                        .collect();
+                    if !pressing.contains(&true) {
+                        return Ok((probe, cands, 1));
+                    }
+                    let sol = solve_with(&pressing)?;
+                    Ok((
+                        socp::Solution {
+                            iterations: sol.iterations + probe.iterations,
+                            ..sol
+                        },
+                        cands,
+                        2,
+                    ))
+                }
+            }
         };
         let mut fell_back = false;
         let (sol, cands) = match self.params.friction_model {
             FrictionModel::Anitescu => {
-                let (sol, cands) = anitescu()?;
+                let (sol, cands, n_solves) = anitescu()?;
                 iters += sol.iterations;
-                solves += 1;
+                solves += n_solves;
                 worst_status = sol.status;
                 (sol, cands)
             }
@@ -921,7 +1091,7 @@ impl World {
                 let mut omega: f64 = 1.0;
                 let mut prev: Option<(Vec<ContactKey>, Vec<f64>)> = None;
                 let mut last = None;
-                for _ in 0..self.params.staggered_iterations.max(1) {
+                for _ in 0..self.params.staggered_iterations {
                     let keys: Vec<ContactKey> = cands.iter().map(|c| c.key).collect();
                     let normals: Vec<f64> = keys
                         .iter()
@@ -1003,9 +1173,9 @@ impl World {
                 if unconverged.is_some() && self.params.staggered_fallback {
                     // No fixed point (e.g. wedging at high μ): take the convex cone model's
                     // answer for this sub-step and say so.
-                    let (sol, cands) = anitescu()?;
+                    let (sol, cands, n_solves) = anitescu()?;
                     iters += sol.iterations;
-                    solves += 1;
+                    solves += n_solves;
                     if sol.status == SolverStatus::AlmostSolved {
                         worst_status = SolverStatus::AlmostSolved;
                     }
@@ -1097,6 +1267,10 @@ pub fn force_columns(scene: SceneKind, contacts: &[ContactReport]) -> Vec<f64> {
     out
 }
 
+/// A candidate presses when its frictionless normal force exceeds this (N); interior-point
+/// duals of separated candidates are ≲ 1e-7 N.
+const PRESSING_FORCE: f64 = 1e-5;
+
 /// What one sub-step produced.
 struct SubstepResult {
     dx: Vec<f64>,
@@ -1162,6 +1336,53 @@ mod tests {
             force_columns(SceneKind::Screwdriver, &sd)[6..],
             [1.0, 1.0, 0.0]
         );
+    }
+
+    /// A free finger ends the action at its command under either profile; the ramp takes all
+    /// sub-steps, the step input stops early once settled.
+    #[test]
+    fn free_finger_reaches_its_command() {
+        for profile in [CommandProfile::Ramp, CommandProfile::Step] {
+            let mut params = WorldParams::for_scene(SceneKind::Card);
+            params.command_profile = profile;
+            let mut w =
+                World::with_model(SceneKind::Card, HandModel::allegro_v4(), params).unwrap();
+            // Lift the index and middle 2 cm (free motion), then command a joint move.
+            let up = scripted::card_push_action(&w, 0.0, -0.02);
+            w.step_action(&up).unwrap();
+            let before = w.task_joints();
+            let dq = [0.05, -0.04, 0.03, 0.02, -0.05, 0.04, -0.03, 0.02];
+            let r = w.step_action(&dq).unwrap();
+            let after = w.task_joints();
+            for ((a, b), d) in after.iter().zip(&before).zip(&dq) {
+                assert!((a - b - d).abs() < 1e-9, "{profile:?}: {a} vs {}", b + d);
+            }
+            let expected = match profile {
+                CommandProfile::Ramp => 10,
+                CommandProfile::Step => 2,
+            };
+            assert_eq!(r.substeps_run, expected, "{profile:?}");
+        }
+    }
+
+    #[test]
+    fn invalid_params_are_errors() {
+        let mut p = WorldParams::for_scene(SceneKind::Screwdriver);
+        p.substeps = 0;
+        let e = World::with_model(SceneKind::Screwdriver, HandModel::allegro_v4(), p)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("substeps") && e.contains("≥ 1"), "{e}");
+        let mut p = WorldParams::for_scene(SceneKind::Card);
+        p.kp = f64::NAN;
+        assert!(matches!(
+            p.validate(),
+            Err(WorldError::Params { name: "kp", .. })
+        ));
+        let mut p = WorldParams::for_scene(SceneKind::Card);
+        p.finger_friction = 0.0;
+        assert!(p.validate().is_err());
+        assert!(WorldParams::for_scene(SceneKind::Card).validate().is_ok());
     }
 
     #[test]

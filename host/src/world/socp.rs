@@ -1,11 +1,13 @@
 //! Assembly of one contact sub-step as a Clarabel second-order cone program (spec §1.2):
 //!
 //! ```text
-//! minimise ½ xᵀ P x + cᵀ x   subject to   [φᵢ/μᵢ + nᵢᵀJᵢx/μᵢ ; t1ᵢᵀJᵢx ; t2ᵢᵀJᵢx] ∈ SOC₃  (each contact)
+//! minimise ½ xᵀ P x + cᵀ x   subject to   [φᵢ/μᵢ + nᵢᵀJᵢx/μᵢ ; t1ᵢᵀJᵢx ; t2ᵢᵀJᵢx] ∈ SOC₃  (contacts with a cone)
+//!                                         φᵢ + nᵢᵀJᵢx ≥ 0                            (the others)      
 //!                                         lo ≤ x_a ≤ hi                              (joint limits)
 //! ```
 //!
-//! with `x = [δq_a ; δq_u]`. The duals of the cones are the contact forces.
+//! with `x = [δq_a ; δq_u]`. The duals of the cones and rows are the contact forces. A contact
+//! without a cone gets no friction: it can stop penetration but never push sideways.
 
 use clarabel::algebra::CscMatrix;
 use clarabel::solver::{
@@ -29,8 +31,12 @@ pub(crate) struct ConeRow {
 /// How friction enters the program.
 #[derive(Debug, Clone, Copy)]
 pub(crate) enum FrictionForm<'a> {
-    /// One Anitescu cone per contact: `[φ/μ + nᵀJx/μ ; TᵀJx] ∈ SOC₃`.
-    Anitescu,
+    /// An Anitescu cone `[φ/μ + nᵀJx/μ ; TᵀJx] ∈ SOC₃` on each contact whose `cone` flag is
+    /// set, a frictionless non-penetration row `φ + nᵀJx ≥ 0` on the others.
+    Anitescu {
+        /// Whether each contact gets the cone.
+        cone: &'a [bool],
+    },
     /// Non-penetration `φ + nᵀJx ≥ 0` per contact plus maximum dissipation with a fixed
     /// normal force: objective `+ μ N̂ τ` with `(τ, TᵀJx) ∈ SOC₃` (one cone per contact whose
     /// `μ N̂` is positive). `N̂` is given per contact.
@@ -114,7 +120,7 @@ pub(crate) fn solve(prog: &Program<'_>) -> Result<Solution, String> {
         prog.cones.iter().map(|c| tangents(&c.normal)).collect();
     // Friction epigraph variables (lagged form): one per contact with a positive bound.
     let lagged_slot: Vec<Option<usize>> = match prog.friction {
-        FrictionForm::Anitescu => vec![None; k],
+        FrictionForm::Anitescu { .. } => vec![None; k],
         FrictionForm::Lagged(normals) => {
             let mut next = 0;
             prog.cones
@@ -131,16 +137,31 @@ pub(crate) fn solve(prog: &Program<'_>) -> Result<Solution, String> {
     };
     let n_tau = lagged_slot.iter().flatten().count();
     let nv = n + n_tau;
-    let n_normal_rows = match prog.friction {
-        FrictionForm::Anitescu => 0,
-        FrictionForm::Lagged(_) => k,
+    if let FrictionForm::Anitescu { cone } = prog.friction
+        && cone.len() != k
+    {
+        return Err(format!("{} cone flags for {k} contacts", cone.len()));
+    }
+    // Rows of each contact: 3 (a cone) or 1 (a non-penetration row).
+    let contact_rows: Vec<usize> = match prog.friction {
+        FrictionForm::Anitescu { cone } => cone.iter().map(|c| if *c { 3 } else { 1 }).collect(),
+        FrictionForm::Lagged(_) => vec![1; k],
     };
+    let row_start: Vec<usize> = contact_rows
+        .iter()
+        .scan(0, |next, rows| {
+            let start = *next;
+            *next += rows;
+            Some(start)
+        })
+        .collect();
+    let n_contact_rows: usize = contact_rows.iter().sum();
     let n_soc = match prog.friction {
-        FrictionForm::Anitescu => k,
+        FrictionForm::Anitescu { .. } => 0,
         FrictionForm::Lagged(_) => n_tau,
     };
     let m_bounds = 2 * prog.bounds.len();
-    let m = n_normal_rows + 3 * n_soc + m_bounds;
+    let m = n_contact_rows + 3 * n_soc + m_bounds;
     let rows_total = m.max(1);
     let mut a = DMatrix::<f64>::zeros(rows_total, nv);
     let mut b = vec![0.0; rows_total];
@@ -148,9 +169,18 @@ pub(crate) fn solve(prog: &Program<'_>) -> Result<Solution, String> {
     let mut c_full = prog.c.to_vec();
     c_full.resize(nv, 0.0);
     match prog.friction {
-        FrictionForm::Anitescu => {
+        FrictionForm::Anitescu { cone: with_cone } => {
             for (i, (cone, (t1, t2))) in prog.cones.iter().zip(&frames).enumerate() {
-                let r = 3 * i;
+                let r = row_start[i];
+                if !with_cone[i] {
+                    let jn = cone.normal.transpose() * &cone.jac;
+                    for col in 0..n {
+                        a[(r, col)] = -jn[col];
+                    }
+                    b[r] = cone.phi;
+                    cone_spec.push(SupportedConeT::NonnegativeConeT(1));
+                    continue;
+                }
                 let jn = cone.normal.transpose() * &cone.jac / cone.mu;
                 let j1 = t1.transpose() * &cone.jac;
                 let j2 = t2.transpose() * &cone.jac;
@@ -190,7 +220,7 @@ pub(crate) fn solve(prog: &Program<'_>) -> Result<Solution, String> {
             }
         }
     }
-    let r0 = n_normal_rows + 3 * n_soc;
+    let r0 = n_contact_rows + 3 * n_soc;
     if !prog.bounds.is_empty() {
         for (i, &(lo, hi)) in prog.bounds.iter().enumerate() {
             // x_i ≤ hi  →  s = hi − x_i ≥ 0;   −x_i ≤ −lo  →  s = x_i − lo ≥ 0.
@@ -224,8 +254,13 @@ pub(crate) fn solve(prog: &Program<'_>) -> Result<Solution, String> {
     let mut normal_forces = Vec::with_capacity(k);
     for (i, (cone, (t1, t2))) in prog.cones.iter().zip(&frames).enumerate() {
         match prog.friction {
-            FrictionForm::Anitescu => {
-                let z = &sol.z[3 * i..3 * i + 3];
+            FrictionForm::Anitescu { cone: with_cone } if !with_cone[i] => {
+                let fn_ = sol.z[row_start[i]];
+                normal_forces.push(fn_);
+                forces_on_a.push(cone.normal * fn_);
+            }
+            FrictionForm::Anitescu { .. } => {
+                let z = &sol.z[row_start[i]..row_start[i] + 3];
                 let fn_ = z[0] / cone.mu;
                 normal_forces.push(fn_);
                 forces_on_a.push(cone.normal * fn_ + t1 * z[1] + t2 * z[2]);
@@ -276,7 +311,7 @@ mod tests {
             cones: &[floor_cone()],
             bounds: &[],
             max_iter: 100,
-            friction: FrictionForm::Anitescu,
+            friction: FrictionForm::Anitescu { cone: &[true] },
         })
         .unwrap()
     }
@@ -304,6 +339,60 @@ mod tests {
         assert!((sol.x[2] - 0.5 * sol.x[0]).abs() < 1e-6, "{:?}", sol.x);
         let f = sol.forces_on_a[0];
         assert!((f.xy().norm() - 0.5 * f.z).abs() < 1e-5, "{f:?}");
+    }
+
+    /// A separated contact under the Anitescu form gets only a non-penetration row: a point
+    /// 1 mm above the floor slides freely and does not lift (the cone would lift it by μ·slip),
+    /// and a point pressed into the floor from 1 mm above stops on it with the spring force as
+    /// its normal force and no friction.
+    #[test]
+    fn separated_contacts_have_no_friction() {
+        let k = 100.0;
+        let p = DMatrix::identity(3, 3) * k;
+        let mut cone = floor_cone();
+        cone.phi = 0.001;
+        let solve_with = |c: &[f64], touching: bool| {
+            solve(&Program {
+                p: &p,
+                c,
+                cones: std::slice::from_ref(&cone),
+                bounds: &[],
+                max_iter: 100,
+                friction: FrictionForm::Anitescu { cone: &[touching] },
+            })
+            .unwrap()
+        };
+        let slide = [-k * 0.01, 0.0, 0.0];
+        let sol = solve_with(&slide, false);
+        assert_eq!(sol.status, SolverStatus::Solved);
+        assert!(
+            (sol.x[0] - 0.01).abs() < 1e-7 && sol.x[2].abs() < 1e-7,
+            "{:?}",
+            sol.x
+        );
+        assert!(sol.forces_on_a[0].norm() < 1e-6, "{:?}", sol.forces_on_a);
+        // The cone on the same contact drags: it must lift μ·slip − φ to slide.
+        let sol = solve_with(&slide, true);
+        assert!(sol.x[0] < 0.0099 && sol.x[2] > 0.0, "{:?}", sol.x);
+        // Pressed 1 cm down from 1 mm above: stops on the floor, normal force k·9 mm, no
+        // tangential force even with a tangential pull.
+        let press = [-k * 0.004, 0.0, k * 0.01];
+        let sol = solve_with(&press, false);
+        assert!((sol.x[2] + 0.001).abs() < 1e-7, "{:?}", sol.x);
+        assert!((sol.x[0] - 0.004).abs() < 1e-7, "{:?}", sol.x);
+        let f = sol.forces_on_a[0];
+        assert!((f.z - 0.9).abs() < 1e-5 && f.xy().norm() < 1e-6, "{f:?}");
+        assert!(matches!(
+            solve(&Program {
+                p: &p,
+                c: &press,
+                cones: std::slice::from_ref(&cone),
+                bounds: &[],
+                max_iter: 100,
+                friction: FrictionForm::Anitescu { cone: &[] },
+            }),
+            Err(_)
+        ));
     }
 
     /// Lagged form: no lift when sliding, friction bounded by μ N̂ and opposing the slip.
@@ -355,7 +444,7 @@ mod tests {
             cones: &[],
             bounds: &[(-0.5, 0.5), (-0.2, 0.2)],
             max_iter: 100,
-            friction: FrictionForm::Anitescu,
+            friction: FrictionForm::Anitescu { cone: &[] },
         })
         .unwrap();
         assert_eq!(sol.status, SolverStatus::Solved);
