@@ -55,6 +55,13 @@ pub struct WorldParams {
     /// for logs written before this field existed).
     #[serde(default = "legacy_command_profile")]
     pub command_profile: CommandProfile,
+    /// With [`CommandProfile::Ramp`], the fraction of the action over which the setpoint
+    /// moves; it holds the command for the rest (in whole sub-steps: the ramp ends at sub-step
+    /// `ceil(ramp_fraction · substeps)`). A finger that slides while pressing ends each
+    /// Anitescu sub-step lifted by μ·slip; the settling sub-steps bring it back onto the
+    /// surface before the action ends. In (0, 1].
+    #[serde(default = "full_ramp")]
+    pub ramp_fraction: f64,
     /// Finger–object friction coefficient.
     pub finger_friction: f64,
     /// Card–table friction coefficient (card scene).
@@ -94,6 +101,10 @@ fn legacy_cone_activation() -> ConeActivation {
     ConeActivation::All
 }
 
+fn full_ramp() -> f64 {
+    1.0
+}
+
 fn legacy_command_profile() -> CommandProfile {
     CommandProfile::Step
 }
@@ -107,10 +118,11 @@ pub enum ConeActivation {
     /// without pressing drags it along (`docs/world.md`).
     All,
     /// Only candidates that press: each sub-step is first solved with frictionless
-    /// non-penetration rows, and the candidates that carry a normal force there get the cone
-    /// in the solve that is applied; the others keep their frictionless row. A finger that
-    /// does not press cannot push the object sideways. Two solves per sub-step where some
-    /// candidate presses, one where none does.
+    /// non-penetration rows, and the candidates that carry a normal force there, or carried
+    /// one at the end of the previous sub-step, get the cone in the solve that is applied;
+    /// the others keep their frictionless row. A finger that does not press cannot push the
+    /// object sideways. Two solves per sub-step where some candidate presses, one where none
+    /// does.
     Pressing,
 }
 
@@ -167,6 +179,7 @@ impl WorldParams {
             contact_margin: 0.02,
             cone_activation: ConeActivation::Pressing,
             command_profile: CommandProfile::Ramp,
+            ramp_fraction: 0.8,
             finger_friction: scene.finger_friction(),
             table_friction: table,
             finger_table_friction: card::FINGER_TABLE_FRICTION,
@@ -182,6 +195,11 @@ impl WorldParams {
             geometry_tolerance: 2e-5,
             staggered_fallback: false,
         }
+    }
+
+    /// Sub-steps over which a ramped setpoint moves (at least 1, at most `substeps`).
+    pub fn ramp_substeps(&self) -> usize {
+        ((self.ramp_fraction * self.substeps as f64).ceil() as usize).clamp(1, self.substeps)
     }
 
     /// Sub-step length (s).
@@ -248,6 +266,9 @@ impl WorldParams {
             if v == 0 {
                 return bad(name, 0.0, "a whole number ≥ 1");
             }
+        }
+        if !(self.ramp_fraction > 0.0 && self.ramp_fraction <= 1.0) {
+            return bad("ramp_fraction", self.ramp_fraction, "a number in (0, 1]");
         }
         Ok(())
     }
@@ -795,9 +816,10 @@ impl World {
         let q_start = self.task_joints();
         let substeps = self.params.substeps;
         let ramping = self.params.command_profile == CommandProfile::Ramp && q_cmd != q_start;
+        let ramp = self.params.ramp_substeps();
         for substep in 0..substeps {
             let setpoint: Vec<f64> = if ramping {
-                let s = (substep + 1) as f64 / substeps as f64;
+                let s = ((substep + 1) as f64 / ramp as f64).min(1.0);
                 q_start
                     .iter()
                     .zip(&q_cmd)
@@ -845,7 +867,7 @@ impl World {
             self.normal_memory = memory;
             // Settled, and the setpoint will not move any more.
             let norm = dx.iter().map(|v| v * v).sum::<f64>().sqrt();
-            if norm < self.params.early_stop && (!ramping || substep + 1 == substeps) {
+            if norm < self.params.early_stop && (!ramping || substep + 1 >= ramp) {
                 break;
             }
         }
@@ -1030,7 +1052,9 @@ impl World {
         let mut solves = 0;
         let mut unconverged = None;
         let mut worst_status = SolverStatus::Solved;
-        let anitescu = || -> Result<(socp::Solution, Vec<contacts::Candidate>, u32), WorldError> {
+        // The Anitescu solve, with the number of solves it took.
+        type AnitescuResult = (socp::Solution, Vec<contacts::Candidate>, u32);
+        let anitescu = || -> Result<AnitescuResult, WorldError> {
             let cands = self.candidates_at(&vec![0.0; n]);
             let rows: Vec<socp::ConeRow> = cands.iter().map(|c| c.row.clone()).collect();
             let solve_with = |cone: &[bool]| -> Result<socp::Solution, WorldError> {
@@ -1050,15 +1074,25 @@ impl World {
                 ConeActivation::All => Ok((solve_with(&vec![true; rows.len()])?, cands, 1)),
                 ConeActivation::Pressing => {
                     let probe = solve_with(&vec![false; rows.len()])?;
-                    let pressing: Vec<bool> = probe
+                    // Pressing in the frictionless probe, or pressed at the end of the
+                    // previous sub-step: a pressed contact that slid ends its sub-step lifted
+                    // by μ·slip and keeps its friction while it is held against the object.
+                    let cone: Vec<bool> = probe
                         .normal_forces
                         .iter()
-                        .map(|f| *f > PRESSING_FORCE)
+                        .zip(&cands)
+                        .map(|(f, cand)| {
+                            *f > PRESSING_FORCE
+                                || self
+                                    .normal_memory
+                                    .iter()
+                                    .any(|(k, m)| *k == cand.key && *m > PRESSING_FORCE)
+                        })
                         .collect();
-                    if !pressing.contains(&true) {
+                    if !cone.contains(&true) {
                         return Ok((probe, cands, 1));
                     }
-                    let sol = solve_with(&pressing)?;
+                    let sol = solve_with(&cone)?;
                     Ok((
                         socp::Solution {
                             iterations: sol.iterations + probe.iterations,
@@ -1267,8 +1301,9 @@ pub fn force_columns(scene: SceneKind, contacts: &[ContactReport]) -> Vec<f64> {
     out
 }
 
-/// A candidate presses when its frictionless normal force exceeds this (N); interior-point
-/// duals of separated candidates are ≲ 1e-7 N.
+/// A candidate presses when its frictionless normal force (or its normal force at the end of
+/// the previous sub-step) exceeds this (N); interior-point duals of separated candidates are
+/// ≲ 1e-7 N.
 const PRESSING_FORCE: f64 = 1e-5;
 
 /// What one sub-step produced.
@@ -1338,8 +1373,9 @@ mod tests {
         );
     }
 
-    /// A free finger ends the action at its command under either profile; the ramp takes all
-    /// sub-steps, the step input stops early once settled.
+    /// A free finger ends the action at its command under either profile; the ramp stops one
+    /// sub-step after it reaches the command (8 of 10, then one settled sub-step), the step
+    /// input one sub-step after the first.
     #[test]
     fn free_finger_reaches_its_command() {
         for profile in [CommandProfile::Ramp, CommandProfile::Step] {
@@ -1358,7 +1394,7 @@ mod tests {
                 assert!((a - b - d).abs() < 1e-9, "{profile:?}: {a} vs {}", b + d);
             }
             let expected = match profile {
-                CommandProfile::Ramp => 10,
+                CommandProfile::Ramp => 9,
                 CommandProfile::Step => 2,
             };
             assert_eq!(r.substeps_run, expected, "{profile:?}");
