@@ -8,6 +8,9 @@ use dips_host::world::{
 };
 use nalgebra::{Point3, Vector3};
 
+/// A named way to change the world's parameters.
+type Variant = (&'static str, Box<dyn Fn(&mut WorldParams)>);
+
 fn world(scene: SceneKind, opt: &dyn Fn(&mut WorldParams)) -> World {
     let mut p = WorldParams::for_scene(scene);
     opt(&mut p);
@@ -105,7 +108,7 @@ fn pinch(opt: &dyn Fn(&mut WorldParams), subs: usize) -> (f64, f64) {
 #[test]
 #[ignore = "a measurement that prints docs/world.md's options table"]
 fn options() {
-    let opts: Vec<(&str, Box<dyn Fn(&mut WorldParams)>)> = vec![
+    let opts: Vec<Variant> = vec![
         (
             "plain cone, step",
             Box::new(|p: &mut WorldParams| {
@@ -159,7 +162,7 @@ fn options() {
             p[1].1
         );
     }
-    let copts: Vec<(&str, Box<dyn Fn(&mut WorldParams)>)> = vec![
+    let copts: Vec<Variant> = vec![
         (
             "anitescu plain, step",
             Box::new(|p: &mut WorldParams| {
