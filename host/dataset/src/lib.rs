@@ -236,7 +236,11 @@ pub fn encode_demo(path: &Path, demo: &DemoRecord) -> Result<Vec<u8>> {
         reason,
     };
     demo.check().map_err(bad)?;
-    if let Some(k) = demo.metadata.keys().find(|k| RESERVED_KEYS.contains(&k.as_str())) {
+    if let Some(k) = demo
+        .metadata
+        .keys()
+        .find(|k| RESERVED_KEYS.contains(&k.as_str()))
+    {
         return Err(bad(format!("metadata key {k:?} is reserved")));
     }
     let dims = demo.dims();
@@ -254,7 +258,12 @@ pub fn encode_demo(path: &Path, demo: &DemoRecord) -> Result<Vec<u8>> {
             vec![n, dims.fingers],
             f32_bytes(&demo.contexts),
         ),
-        ("mode_index", Dtype::I64, vec![n], i64_bytes(&demo.mode_index)),
+        (
+            "mode_index",
+            Dtype::I64,
+            vec![n],
+            i64_bytes(&demo.mode_index),
+        ),
         ("step", Dtype::I64, vec![n], i64_bytes(&demo.step)),
         ("particle", Dtype::I64, vec![n], i64_bytes(&demo.particle)),
     ];
@@ -295,8 +304,8 @@ pub fn decode_demo(path: &Path, bytes: &[u8], task: Task) -> Result<DemoRecord> 
     };
     let (_, metadata) = SafeTensors::read_metadata(bytes)
         .map_err(|e| fmt(format!("not a safetensors file: {e}")))?;
-    let st = SafeTensors::deserialize(bytes)
-        .map_err(|e| fmt(format!("not a safetensors file: {e}")))?;
+    let st =
+        SafeTensors::deserialize(bytes).map_err(|e| fmt(format!("not a safetensors file: {e}")))?;
     let meta = metadata
         .metadata()
         .clone()
@@ -325,8 +334,11 @@ pub fn decode_demo(path: &Path, bytes: &[u8], task: Task) -> Result<DemoRecord> 
         .parse()
         .map_err(|_| fmt(format!("seed {seed_s:?} is not an unsigned integer")))?;
     let modes_s = key("modes")?;
-    let modes: Vec<String> = serde_json::from_str(modes_s)
-        .map_err(|e| fmt(format!("modes {modes_s:?} is not a JSON array of strings: {e}")))?;
+    let modes: Vec<String> = serde_json::from_str(modes_s).map_err(|e| {
+        fmt(format!(
+            "modes {modes_s:?} is not a JSON array of strings: {e}"
+        ))
+    })?;
     let dims = task.dims();
 
     let tensor = |name: &str, dtype: Dtype, shape: &[Option<usize>]| {
@@ -341,7 +353,10 @@ pub fn decode_demo(path: &Path, bytes: &[u8], task: Task) -> Result<DemoRecord> 
         }
         let got = view.shape();
         let ok = got.len() == shape.len()
-            && got.iter().zip(shape).all(|(g, w)| w.is_none_or(|w| w == *g));
+            && got
+                .iter()
+                .zip(shape)
+                .all(|(g, w)| w.is_none_or(|w| w == *g));
         if !ok {
             let want: Vec<String> = shape
                 .iter()

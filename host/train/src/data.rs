@@ -117,8 +117,8 @@ impl Normalizer {
     pub fn normalize(&self, x: &mut [f32]) {
         let d = self.mean.len();
         for row in x.chunks_exact_mut(d) {
-            for j in 0..d {
-                row[j] = (row[j] - self.mean[j]) / self.std[j];
+            for ((v, m), s) in row.iter_mut().zip(&self.mean).zip(&self.std) {
+                *v = (*v - m) / s;
             }
         }
     }
@@ -255,12 +255,12 @@ pub fn noise_batch(
         };
         let mask = draw_mask(dims.horizon, rng);
         let (sa, sb) = (alpha_bar[ti].sqrt(), (1.0 - alpha_bar[ti]).sqrt());
-        for r in 0..dims.horizon {
+        for (r, &given) in mask.iter().enumerate() {
             for c in 0..d {
                 let k = i * td + r * d + c;
                 let e = rng.normal_f32();
                 eps[k] = e;
-                if mask[r] {
+                if given {
                     x_t[k] = x0[k];
                 } else {
                     x_t[k] = sa * x0[k] + sb * e;

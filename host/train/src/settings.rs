@@ -177,7 +177,7 @@ impl NetSettings {
                 "embed_dim and context_embed_dim must be positive",
             ));
         }
-        if self.time_embed_dim < 4 || self.time_embed_dim % 2 != 0 {
+        if self.time_embed_dim < 4 || !self.time_embed_dim.is_multiple_of(2) {
             return Err(bad("net.time_embed_dim", "must be even and at least 4"));
         }
         Ok(())

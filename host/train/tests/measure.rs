@@ -27,6 +27,12 @@ fn size_loss_inference_trade_off() {
         (vec![32, 64, 128], 64),
         (vec![64, 128, 256], 128),
     ] {
+        // MEASURE_WIDTH=16 measures only the net whose first width is 16.
+        if let Ok(w) = std::env::var("MEASURE_WIDTH")
+            && w.parse::<usize>().ok() != Some(widths[0])
+        {
+            continue;
+        }
         let mut s = TrainSettings::default();
         s.net.widths = widths.clone();
         s.net.embed_dim = embed;

@@ -205,8 +205,10 @@ fn bad_settings_and_bad_files_are_typed_errors() {
     let mut s = TrainSettings::default();
     s.denoiser.lr = f64::NAN;
     assert!(matches!(s.validate(), Err(TrainError::Settings { .. })));
-    let mut s = TrainSettings::default();
-    s.held_out_fraction = 1.0;
+    let s = TrainSettings {
+        held_out_fraction: 1.0,
+        ..TrainSettings::default()
+    };
     assert!(matches!(s.validate(), Err(TrainError::Settings { .. })));
 
     let dir = tmp("bad");
