@@ -1,0 +1,280 @@
+//! Training data in memory: the flat sample table, z-score normalisation, the screwdriver's
+//! yaw augmentation, the random inpainting masks and the forward-noised batches.
+
+use dips_dataset::{Dataset, mix64};
+use dips_kernel::mode::{SegmentDims, Task};
+use dips_kernel::rng::KernelRng;
+
+use crate::error::{Result, TrainError};
+
+/// Flat trajectories of some demos (raw units).
+#[derive(Debug, Clone, Default)]
+pub struct Samples {
+    /// `[n, T, D]`.
+    pub x: Vec<f32>,
+    /// `[n, F]`.
+    pub context: Vec<f32>,
+    /// Number of trajectories.
+    pub n: usize,
+}
+
+impl Samples {
+    /// The trajectories of the demos with indices `demos`.
+    pub fn gather(ds: &Dataset, demos: &[usize]) -> Self {
+        let mut s = Samples::default();
+        for &i in demos {
+            let d = &ds.demos[i];
+            s.x.extend_from_slice(&d.trajectories);
+            s.context.extend_from_slice(&d.contexts);
+            s.n += d.len();
+        }
+        s
+    }
+
+    /// A deterministic subset of at most `k` trajectories, evenly spread over the table.
+    pub fn subset(&self, k: usize, dims: SegmentDims) -> Self {
+        if k >= self.n {
+            return self.clone();
+        }
+        let mut s = Samples::default();
+        let (td, f) = (dims.floats(), dims.fingers);
+        for j in 0..k {
+            let i = j * self.n / k;
+            s.x.extend_from_slice(&self.x[i * td..(i + 1) * td]);
+            s.context
+                .extend_from_slice(&self.context[i * f..(i + 1) * f]);
+            s.n += 1;
+        }
+        s
+    }
+}
+
+/// The cos/sin column pairs of a task (from the contract's column names).
+pub fn angle_columns(task: Task) -> Vec<(usize, usize)> {
+    let Some(layout) = dips_onnx::tasks::task_layout(task.name()) else {
+        return Vec::new();
+    };
+    let cols = layout.columns();
+    let mut pairs = Vec::new();
+    for (i, c) in cols.iter().enumerate() {
+        if let Some(rest) = c.strip_prefix("cos_")
+            && let Some(j) = cols.iter().position(|s| *s == format!("sin_{rest}"))
+        {
+            pairs.push((i, j));
+        }
+    }
+    pairs
+}
+
+/// Per-column z-score normalisation, `normalized = (raw − mean)/std`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Normalizer {
+    /// Means.
+    pub mean: Vec<f32>,
+    /// Standard deviations (> 0).
+    pub std: Vec<f32>,
+}
+
+impl Normalizer {
+    /// Mean and std per column over every row of `s` (in `f64`); cos/sin columns get mean 0,
+    /// std 1; every std is at least `std_floor`.
+    pub fn fit(s: &Samples, task: Task, std_floor: f32) -> Result<Self> {
+        let d = task.dims().dim();
+        let rows = s.x.len() / d.max(1);
+        if rows == 0 {
+            return Err(TrainError::DatasetUnusable(
+                "no training trajectories".into(),
+            ));
+        }
+        let mut sum = vec![0f64; d];
+        let mut sq = vec![0f64; d];
+        for row in s.x.chunks_exact(d) {
+            for (j, &v) in row.iter().enumerate() {
+                sum[j] += f64::from(v);
+                sq[j] += f64::from(v) * f64::from(v);
+            }
+        }
+        let n = rows as f64;
+        let mut mean: Vec<f32> = sum.iter().map(|v| (v / n) as f32).collect();
+        let mut std: Vec<f32> = sum
+            .iter()
+            .zip(&sq)
+            .map(|(s, q)| {
+                let m = s / n;
+                ((q / n - m * m).max(0.0).sqrt() as f32).max(std_floor)
+            })
+            .collect();
+        for (c, s_) in angle_columns(task) {
+            for j in [c, s_] {
+                mean[j] = 0.0;
+                std[j] = 1.0;
+            }
+        }
+        Ok(Self { mean, std })
+    }
+
+    /// Normalise `[.., D]` rows in place.
+    pub fn normalize(&self, x: &mut [f32]) {
+        let d = self.mean.len();
+        for row in x.chunks_exact_mut(d) {
+            for ((v, m), s) in row.iter_mut().zip(&self.mean).zip(&self.std) {
+                *v = (*v - m) / s;
+            }
+        }
+    }
+}
+
+/// Rotate the yaw's (cos, sin) columns of every row of one raw trajectory by `delta`.
+///
+/// Only the yaw pair turns. The screwdriver is axisymmetric about its own axis, so a yaw
+/// offset relabels the object's orientation while the hand (joints), the contact points and
+/// the world-frame forces stay exactly as they are: the force columns are not rotated.
+pub fn rotate_yaw(traj: &mut [f32], d: usize, cos_col: usize, sin_col: usize, delta: f32) {
+    let (sd, cd) = (delta.sin(), delta.cos());
+    for row in traj.chunks_exact_mut(d) {
+        let (c, s) = (row[cos_col], row[sin_col]);
+        row[cos_col] = c * cd - s * sd;
+        row[sin_col] = s * cd + c * sd;
+    }
+}
+
+/// Independent random streams, each a function of `(seed, purpose, index)` only: the whole
+/// generator state of a run is its step counter.
+pub fn stream(seed: u64, purpose: u64, index: u64) -> KernelRng {
+    KernelRng::seed_from_u64(mix64(mix64(seed ^ purpose.rotate_left(32)) ^ index))
+}
+
+/// Stream purposes.
+pub mod purpose {
+    /// Parameter initialisation of the denoiser.
+    pub const INIT_DENOISER: u64 = 1;
+    /// Parameter initialisation of the discriminator.
+    pub const INIT_DISCRIMINATOR: u64 = 2;
+    /// Per-epoch data order.
+    pub const ORDER: u64 = 3;
+    /// Per-step noise, masks, steps and dropout.
+    pub const STEP: u64 = 4;
+    /// The held-out evaluation's fixed draws.
+    pub const EVAL: u64 = 5;
+    /// The sampler that makes the discriminator's diffused trajectories.
+    pub const SAMPLER: u64 = 6;
+    /// Discriminator data order.
+    pub const DISC_ORDER: u64 = 7;
+}
+
+/// The permutation of `n` items for `epoch` (Fisher–Yates on its own stream).
+pub fn epoch_order(seed: u64, purpose: u64, epoch: u64, n: usize) -> Vec<usize> {
+    let mut rng = stream(seed, purpose, epoch);
+    let mut v: Vec<usize> = (0..n).collect();
+    for i in (1..n).rev() {
+        let j = rng.below((i + 1) as u32) as usize;
+        v.swap(i, j);
+    }
+    v
+}
+
+/// The sample indices of optimiser step `step` with batch `b` over `n` items: position
+/// `p = step·b + j` is item `order(p / n)[p % n]`.
+pub fn batch_indices(
+    seed: u64,
+    purpose: u64,
+    step: usize,
+    b: usize,
+    n: usize,
+    cache: &mut Option<(u64, Vec<usize>)>,
+) -> Vec<usize> {
+    (0..b)
+        .map(|j| {
+            let p = step * b + j;
+            let epoch = (p / n) as u64;
+            if cache.as_ref().is_none_or(|(e, _)| *e != epoch) {
+                *cache = Some((epoch, epoch_order(seed, purpose, epoch, n)));
+            }
+            cache.as_ref().map_or(0, |(_, o)| o[p % n])
+        })
+        .collect()
+}
+
+/// Draw the inpainting mask of one trajectory (spec §4.3): `true` = given (clean, not in the
+/// loss). Row 0 given w.p. 0.5, the last row w.p. 0.5, every row also w.p. 0.25; if every
+/// row ends up given, one random row is un-given.
+pub fn draw_mask(rows: usize, rng: &mut KernelRng) -> Vec<bool> {
+    let mut m = vec![false; rows];
+    m[0] = rng.uniform_f32() < 0.5;
+    m[rows - 1] |= rng.uniform_f32() < 0.5;
+    for v in m.iter_mut() {
+        *v |= rng.uniform_f32() < 0.25;
+    }
+    if m.iter().all(|&g| g) {
+        let i = rng.below(rows as u32) as usize;
+        m[i] = false;
+    }
+    m
+}
+
+/// One forward-noised training batch (flat, ready for tensors).
+#[derive(Debug, Clone)]
+pub struct NoisedBatch {
+    /// `[B,T,D]` network input: `√ᾱ x₀ + √(1−ᾱ) ε` with given rows replaced by `x₀`.
+    pub x_t: Vec<f32>,
+    /// `[B,T,D]` the noise target.
+    pub eps: Vec<f32>,
+    /// `[B,T,D]` 1 where the entry is in the loss (not given), else 0.
+    pub weight: Vec<f32>,
+    /// `[B]` step indices.
+    pub t: Vec<f32>,
+    /// `[B,F]`.
+    pub context: Vec<f32>,
+    /// `[B]` 1 conditioned, 0 context dropped.
+    pub cond_mask: Vec<f32>,
+}
+
+/// Build a noised batch from normalised clean trajectories `x0 [B,T,D]`.
+pub fn noise_batch(
+    x0: &[f32],
+    context: Vec<f32>,
+    dims: SegmentDims,
+    alpha_bar: &[f32],
+    dropout: f32,
+    rng: &mut KernelRng,
+) -> NoisedBatch {
+    let (td, d) = (dims.floats(), dims.dim());
+    let b = x0.len() / td;
+    let mut x_t = vec![0.0; x0.len()];
+    let mut eps = vec![0.0; x0.len()];
+    let mut weight = vec![0.0; x0.len()];
+    let mut t = vec![0.0; b];
+    let mut cond_mask = vec![0.0; b];
+    for i in 0..b {
+        let ti = rng.below(alpha_bar.len() as u32) as usize;
+        t[i] = ti as f32;
+        cond_mask[i] = if rng.uniform_f32() < dropout {
+            0.0
+        } else {
+            1.0
+        };
+        let mask = draw_mask(dims.horizon, rng);
+        let (sa, sb) = (alpha_bar[ti].sqrt(), (1.0 - alpha_bar[ti]).sqrt());
+        for (r, &given) in mask.iter().enumerate() {
+            for c in 0..d {
+                let k = i * td + r * d + c;
+                let e = rng.normal_f32();
+                eps[k] = e;
+                if given {
+                    x_t[k] = x0[k];
+                } else {
+                    x_t[k] = sa * x0[k] + sb * e;
+                    weight[k] = 1.0;
+                }
+            }
+        }
+    }
+    NoisedBatch {
+        x_t,
+        eps,
+        weight,
+        t,
+        context,
+        cond_mask,
+    }
+}

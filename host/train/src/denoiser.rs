@@ -1,0 +1,404 @@
+//! Training the denoiser: ε-prediction on forward-noised, inpainting-masked, normalised
+//! trajectories with context dropout; Adam; EMA; checkpoints; the held-out loss.
+
+use std::collections::HashMap;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use burn::tensor::Device;
+use dips_dataset::Dataset;
+use dips_kernel::diffusion::schedule::fill_alpha_bar;
+use dips_kernel::mode::{SegmentDims, Task};
+use serde::Serialize;
+
+use crate::data::{
+    Normalizer, Samples, angle_columns, batch_indices, noise_batch, purpose, rotate_yaw, stream,
+};
+use crate::error::{Result, TrainError, io_err};
+use crate::net::{Denoiser, NetDims, tensor};
+use crate::params::{Checkpoint, OptimState, ParamStore, to_vec};
+use crate::progress::{RunOptions, bar};
+use crate::settings::TrainSettings;
+
+/// Figures of a denoiser training run (`train_report.json`).
+#[derive(Debug, Clone, Serialize, PartialEq)]
+pub struct DenoiserReport {
+    /// Trainable scalars.
+    pub params: usize,
+    /// Training trajectories / held-out trajectories.
+    pub train_samples: usize,
+    /// Held-out trajectories (the loss is averaged over at most `eval_samples` of them).
+    pub held_out_samples: usize,
+    /// Optimiser steps.
+    pub steps: usize,
+    /// Epochs those steps amount to.
+    pub epochs: f64,
+    /// The step this run resumed from (0: fresh).
+    pub resumed_from: usize,
+    /// Held-out masked MSE of the initial network (fixed draws).
+    pub held_out_loss_initial: Option<f32>,
+    /// Held-out masked MSE of the raw (non-EMA) parameters at the end.
+    pub held_out_loss_raw: Option<f32>,
+    /// Held-out masked MSE of the EMA parameters at the end (the exported model).
+    pub held_out_loss: Option<f32>,
+    /// Mean training loss of the last (up to) 100 steps.
+    pub train_loss_final: f32,
+    /// Mean wall time of one optimiser step in this run (seconds).
+    pub step_time_s: f64,
+    /// Wall time of this run (seconds).
+    pub seconds: f64,
+}
+
+/// A trained denoiser: the network, its exported (EMA) parameters and normalisation.
+#[derive(Debug, Clone)]
+pub struct TrainedDenoiser {
+    /// The task.
+    pub task: Task,
+    /// The network.
+    pub net: Denoiser,
+    /// The EMA parameters (what is exported).
+    pub params: ParamStore,
+    /// The normalisation.
+    pub norm: Normalizer,
+    /// Diffusion steps.
+    pub diffusion_steps: usize,
+    /// Figures.
+    pub report: DenoiserReport,
+}
+
+impl TrainedDenoiser {
+    /// The trainer's own forward pass (burn, no autodiff): `eps [B,T,D]` for flat contract
+    /// inputs. Used to check the exported model against the trained function.
+    pub fn forward(
+        &self,
+        batch: usize,
+        x: &[f32],
+        t: &[f32],
+        context: &[f32],
+        cond_mask: &[f32],
+    ) -> Result<Vec<f32>> {
+        let dev = Device::flex();
+        let d = self.net.dims();
+        let p = self.params.tensors(&dev, false);
+        let y = self.net.fwd(
+            &p,
+            tensor(x.to_vec(), [batch, d.horizon, d.dim], &dev),
+            tensor(t.to_vec(), [batch], &dev),
+            tensor(context.to_vec(), [batch, d.fingers], &dev),
+            tensor(cond_mask.to_vec(), [batch], &dev),
+        );
+        to_vec(y)
+    }
+
+    /// The contract-v1 ONNX model of this denoiser.
+    pub fn onnx(&self) -> Result<tract_onnx::pb::ModelProto> {
+        crate::export::denoiser_model(
+            &self.net,
+            &self.params,
+            self.task,
+            self.diffusion_steps,
+            &self.norm,
+        )
+    }
+}
+
+/// The network's sizes for a task.
+pub fn net_dims(dims: SegmentDims) -> NetDims {
+    NetDims {
+        horizon: dims.horizon,
+        dim: dims.dim(),
+        fingers: dims.fingers,
+    }
+}
+
+/// A fingerprint of training data (FNV-1a over the float bits), stored in checkpoints.
+pub(crate) fn fingerprint(parts: &[&[f32]]) -> String {
+    let mut h: u64 = 0xcbf2_9ce4_8422_2325;
+    for p in parts {
+        for v in *p {
+            for b in v.to_bits().to_le_bytes() {
+                h ^= u64::from(b);
+                h = h.wrapping_mul(0x100_0000_01b3);
+            }
+        }
+    }
+    format!("{h:016x}")
+}
+
+/// Load a checkpoint if one exists and belongs to this run; `None` to start fresh.
+pub(crate) fn resume(
+    path: &Path,
+    template: &ParamStore,
+    meta: &HashMap<String, String>,
+    opts: &RunOptions,
+) -> Result<Option<Checkpoint>> {
+    if opts.fresh || !path.exists() {
+        return Ok(None);
+    }
+    let ck = Checkpoint::load(path, template)?;
+    for (k, v) in meta {
+        if ck.meta.get(k) != Some(v) {
+            return Err(TrainError::Checkpoint {
+                path: path.to_path_buf(),
+                reason: format!(
+                    "its {k} differs from this run's (delete it, or pass `fresh`, to start over)"
+                ),
+            });
+        }
+    }
+    Ok(Some(ck))
+}
+
+pub(crate) fn checkpoint_dir(out_dir: &Path) -> Result<PathBuf> {
+    let d = out_dir.join("checkpoints");
+    std::fs::create_dir_all(&d).map_err(io_err(&d))?;
+    Ok(d)
+}
+
+/// The split's samples; errors when there is nothing to train on.
+pub(crate) fn split_samples(ds: &Dataset, settings: &TrainSettings) -> Result<(Samples, Samples)> {
+    let split = ds.split(settings.held_out_fraction);
+    let train = Samples::gather(ds, &split.train);
+    let held = Samples::gather(ds, &split.held_out);
+    if train.n == 0 {
+        return Err(TrainError::DatasetUnusable(
+            "no training trajectories after the held-out split".into(),
+        ));
+    }
+    Ok((train, held))
+}
+
+/// Fixed held-out draws: a normalised, noised, masked batch with the context kept.
+struct EvalSet {
+    batch: crate::data::NoisedBatch,
+    n: usize,
+}
+
+fn eval_set(
+    held: &Samples,
+    settings: &TrainSettings,
+    norm: &Normalizer,
+    dims: SegmentDims,
+    alpha_bar: &[f32],
+) -> Option<EvalSet> {
+    if held.n == 0 {
+        return None;
+    }
+    let s = held.subset(settings.eval_samples, dims);
+    let mut x0 = s.x;
+    norm.normalize(&mut x0);
+    let mut rng = stream(settings.seed, purpose::EVAL, 0);
+    let batch = noise_batch(&x0, s.context, dims, alpha_bar, 0.0, &mut rng);
+    Some(EvalSet { batch, n: s.n })
+}
+
+/// Masked MSE of `params` on the fixed held-out draws (chunks of 256, no autodiff).
+fn eval_loss(net: &Denoiser, params: &ParamStore, e: &EvalSet) -> Result<f32> {
+    let dev = Device::flex();
+    let p = params.tensors(&dev, false);
+    let d = net.dims();
+    let (td, f) = (d.horizon * d.dim, d.fingers);
+    let (mut num, mut den) = (0f64, 0f64);
+    let mut i = 0;
+    while i < e.n {
+        let b = (e.n - i).min(256);
+        let nb = &e.batch;
+        let y = net.fwd(
+            &p,
+            tensor(
+                nb.x_t[i * td..(i + b) * td].to_vec(),
+                [b, d.horizon, d.dim],
+                &dev,
+            ),
+            tensor(nb.t[i..i + b].to_vec(), [b], &dev),
+            tensor(nb.context[i * f..(i + b) * f].to_vec(), [b, f], &dev),
+            tensor(vec![1.0; b], [b], &dev),
+        );
+        let y = to_vec(y)?;
+        for (k, yk) in y.iter().enumerate() {
+            let j = i * td + k;
+            let w = f64::from(nb.weight[j]);
+            let r = f64::from(yk - nb.eps[j]);
+            num += w * r * r;
+            den += w;
+        }
+        i += b;
+    }
+    Ok((num / den.max(1.0)) as f32)
+}
+
+/// Train the denoiser on `ds` (split by demo seed) and return it with its figures.
+///
+/// Checkpoints go to `out_dir/checkpoints/denoiser.safetensors` every
+/// `settings.checkpoint_every` steps and at the end; an existing checkpoint of the same run
+/// (same settings and data) is resumed, and the result equals an uninterrupted run bit for bit.
+pub fn train_denoiser(
+    ds: &Dataset,
+    settings: &TrainSettings,
+    out_dir: &Path,
+    opts: &RunOptions,
+) -> Result<TrainedDenoiser> {
+    settings.validate()?;
+    let started = Instant::now();
+    let task = ds.task;
+    let dims = ds.dims();
+    let (train, held) = split_samples(ds, settings)?;
+    let norm = Normalizer::fit(&train, task, settings.std_floor)?;
+    let s = &settings.denoiser;
+    let mut alpha_bar = vec![0f32; s.diffusion_steps];
+    fill_alpha_bar(s.diffusion_steps, &mut alpha_bar);
+
+    let mut params = ParamStore::default();
+    let net = Denoiser::new(
+        &mut params,
+        net_dims(dims),
+        &settings.net,
+        &mut stream(settings.seed, purpose::INIT_DENOISER, 0),
+    );
+    let eval = eval_set(&held, settings, &norm, dims, &alpha_bar);
+    let initial = match &eval {
+        Some(e) => Some(eval_loss(&net, &params, e)?),
+        None => None,
+    };
+
+    let ck_path = checkpoint_dir(out_dir)?.join("denoiser.safetensors");
+    let settings_json = serde_json::to_string(settings).unwrap_or_default();
+    let meta = HashMap::from([
+        ("settings".to_string(), settings_json),
+        ("task".to_string(), task.name().to_string()),
+        ("data".to_string(), fingerprint(&[&train.x, &train.context])),
+    ]);
+    let mut optim = OptimState::new(&params);
+    if let Some(ck) = resume(&ck_path, &params, &meta, opts)? {
+        params = ck.params;
+        optim = ck.optim;
+    }
+    let resumed_from = optim.step;
+
+    let yaw = if s.augment_yaw && task == Task::Screwdriver {
+        angle_columns(task).first().copied()
+    } else {
+        None
+    };
+    let dev = Device::flex().autodiff();
+    let (td, f, d) = (dims.floats(), dims.fingers, dims.dim());
+    let warmup = settings.ema_warmup();
+    let pb = bar(opts, s.steps as u64, "denoiser");
+    pb.set_position(optim.step as u64);
+    let mut order_cache = None;
+    let mut recent: Vec<f32> = Vec::new();
+    let loop_start = Instant::now();
+    while optim.step < s.steps {
+        let step = optim.step;
+        let mut rng = stream(settings.seed, purpose::STEP, step as u64);
+        let idx = batch_indices(
+            settings.seed,
+            purpose::ORDER,
+            step,
+            s.batch,
+            train.n,
+            &mut order_cache,
+        );
+        let mut x0 = Vec::with_capacity(s.batch * td);
+        let mut ctx = Vec::with_capacity(s.batch * f);
+        for &i in &idx {
+            x0.extend_from_slice(&train.x[i * td..(i + 1) * td]);
+            ctx.extend_from_slice(&train.context[i * f..(i + 1) * f]);
+        }
+        if let Some((c, sn)) = yaw {
+            for traj in x0.chunks_exact_mut(td) {
+                let delta = (rng.uniform_f32() * 2.0 - 1.0) * std::f32::consts::PI;
+                rotate_yaw(traj, d, c, sn, delta);
+            }
+        }
+        norm.normalize(&mut x0);
+        let nb = noise_batch(&x0, ctx, dims, &alpha_bar, s.context_dropout, &mut rng);
+        let wsum: f32 = nb.weight.iter().sum();
+
+        let p = params.tensors(&dev, true);
+        let b = s.batch;
+        let pred = net.fwd(
+            &p,
+            tensor(nb.x_t, [b, dims.horizon, d], &dev),
+            tensor(nb.t, [b], &dev),
+            tensor(nb.context, [b, f], &dev),
+            tensor(nb.cond_mask, [b], &dev),
+        );
+        let diff = pred - tensor(nb.eps, [b, dims.horizon, d], &dev);
+        let loss = (diff.powi_scalar(2) * tensor(nb.weight, [b, dims.horizon, d], &dev))
+            .sum()
+            .div_scalar(wsum.max(1.0));
+        let grads = loss.backward();
+        let lv = to_vec(loss.detach())?.first().copied().unwrap_or(f32::NAN);
+        if !lv.is_finite() {
+            return Err(TrainError::Diverged { step, loss: lv });
+        }
+        let g: Vec<Option<Vec<f32>>> = p
+            .iter()
+            .map(|t| t.grad(&grads).map(to_vec).transpose())
+            .collect::<Result<_>>()?;
+        optim.adam(&mut params, &g, s.lr);
+        optim.ema_update(&params, s.ema_decay, s.ema_every, warmup);
+        recent.push(lv);
+        if recent.len() > 100 {
+            recent.remove(0);
+        }
+        pb.set_position(optim.step as u64);
+        pb.set_message(format!("loss {lv:.4}"));
+        let done = optim.step == s.steps;
+        let every = settings.checkpoint_every;
+        let stop = opts.stop_after == Some(optim.step);
+        if done || stop || (every > 0 && optim.step.is_multiple_of(every)) {
+            Checkpoint {
+                params: params.clone(),
+                optim: optim.clone(),
+                meta: meta.clone(),
+            }
+            .save(&ck_path)?;
+        }
+        if stop && !done {
+            pb.finish_and_clear();
+            return Err(TrainError::Stopped { step: optim.step });
+        }
+    }
+    pb.finish_and_clear();
+    let steps_run = s.steps - resumed_from;
+    let step_time_s = if steps_run > 0 {
+        loop_start.elapsed().as_secs_f64() / steps_run as f64
+    } else {
+        0.0
+    };
+    let ema = ParamStore {
+        data: optim.ema.clone(),
+        ..params.clone()
+    };
+    let (held_out_loss, held_out_loss_raw) = match &eval {
+        Some(e) => (
+            Some(eval_loss(&net, &ema, e)?),
+            Some(eval_loss(&net, &params, e)?),
+        ),
+        None => (None, None),
+    };
+    let report = DenoiserReport {
+        params: params.count(),
+        train_samples: train.n,
+        held_out_samples: held.n,
+        steps: s.steps,
+        epochs: (s.steps * s.batch) as f64 / train.n as f64,
+        resumed_from,
+        held_out_loss_initial: initial,
+        held_out_loss_raw,
+        held_out_loss,
+        train_loss_final: recent.iter().sum::<f32>() / recent.len().max(1) as f32,
+        step_time_s,
+        seconds: started.elapsed().as_secs_f64(),
+    };
+    Ok(TrainedDenoiser {
+        task,
+        net,
+        params: ema,
+        norm,
+        diffusion_steps: s.diffusion_steps,
+        report,
+    })
+}

@@ -1,0 +1,499 @@
+//! Training the discriminator Ψ (spec §4.5) on real (label 1) versus diffused (label 0)
+//! trajectories, clean inputs (t = 0), BCE on the logit.
+//!
+//! The diffused trajectories come from the planner's own sampler: the trained denoiser is
+//! exported to ONNX, loaded by tract (`dips_onnx::TractEngine`) and sampled with
+//! `dips_kernel::diffusion::sample` (ancestral DDPM, noise factor and guidance weight from
+//! the settings), row 0's state inpainted with the real start state and conditioned on the
+//! real context. They are cached in `checkpoints/disc_fakes.safetensors`.
+
+use std::collections::HashMap;
+use std::path::Path;
+use std::time::Instant;
+
+use burn::tensor::Device;
+use burn::tensor::activation::{sigmoid, softplus};
+use dips_dataset::Dataset;
+use dips_kernel::diffusion::{
+    SampleRequest, SamplerConfig, SamplerScratch, SamplingMethod, ScratchLayout, sample,
+};
+use dips_kernel::mode::{SegmentDims, Task};
+use safetensors::{Dtype, SafeTensors, tensor::TensorView};
+use serde::Serialize;
+
+use crate::data::{Normalizer, Samples, batch_indices, purpose, stream};
+use crate::denoiser::{
+    TrainedDenoiser, checkpoint_dir, fingerprint, net_dims, resume, split_samples,
+};
+use crate::error::{Result, TrainError, io_err};
+use crate::net::{Discriminator, tensor};
+use crate::params::{Checkpoint, OptimState, ParamStore, to_vec};
+use crate::progress::{RunOptions, bar};
+use crate::settings::TrainSettings;
+
+/// Trajectories per sampler call (each step evaluates twice as many: guidance).
+const SAMPLER_CHUNK: usize = 96;
+
+/// Figures of a discriminator training run.
+#[derive(Debug, Clone, Serialize, PartialEq)]
+pub struct DiscriminatorReport {
+    /// Trainable scalars.
+    pub params: usize,
+    /// Real (and as many diffused) training trajectories.
+    pub train_pairs: usize,
+    /// Real (and as many diffused) held-out trajectories.
+    pub eval_pairs: usize,
+    /// Optimiser steps.
+    pub steps: usize,
+    /// The step this run resumed from.
+    pub resumed_from: usize,
+    /// Seconds spent sampling diffused trajectories (0 when cached).
+    pub sampling_s: f64,
+    /// Mean training BCE of the last (up to) 100 steps.
+    pub train_loss_final: f32,
+    /// Held-out BCE.
+    pub held_out_loss: Option<f32>,
+    /// Held-out accuracy at p = 0.5.
+    pub held_out_accuracy: Option<f32>,
+    /// Held-out ROC AUC (real versus diffused).
+    pub held_out_auc: Option<f32>,
+    /// Training-set accuracy at p = 0.5.
+    pub train_accuracy: f32,
+    /// Mean wall time of one optimiser step (seconds).
+    pub step_time_s: f64,
+    /// Wall time of this run (seconds).
+    pub seconds: f64,
+}
+
+/// A trained discriminator.
+#[derive(Debug, Clone)]
+pub struct TrainedDiscriminator {
+    /// The task.
+    pub task: Task,
+    /// The network.
+    pub net: Discriminator,
+    /// Its parameters.
+    pub params: ParamStore,
+    /// The normalisation (the denoiser's).
+    pub norm: Normalizer,
+    /// Diffusion steps of the denoiser it was trained against (contract metadata).
+    pub diffusion_steps: usize,
+    /// Figures.
+    pub report: DiscriminatorReport,
+}
+
+impl TrainedDiscriminator {
+    /// The trainer's own forward pass: `p_real [B]` for normalised `x [B,T,D]`, `context`.
+    pub fn forward(&self, batch: usize, x: &[f32], context: &[f32]) -> Result<Vec<f32>> {
+        let dev = Device::flex();
+        let d = self.net.dims();
+        let p = self.params.tensors(&dev, false);
+        let z = self.net.logit(
+            &p,
+            tensor(x.to_vec(), [batch, d.horizon, d.dim], &dev),
+            tensor(context.to_vec(), [batch, d.fingers], &dev),
+        );
+        to_vec(sigmoid(z))
+    }
+
+    /// The contract-v1 ONNX model of this discriminator.
+    pub fn onnx(&self) -> Result<tract_onnx::pb::ModelProto> {
+        crate::export::discriminator_model(
+            &self.net,
+            &self.params,
+            self.task,
+            self.diffusion_steps,
+            &self.norm,
+        )
+    }
+}
+
+/// Sample one diffused trajectory per real one (same context, same start state), raw units.
+pub fn diffuse_like(
+    denoiser: &TrainedDenoiser,
+    real: &Samples,
+    config: &SamplerConfig,
+    seed: u64,
+    opts: &RunOptions,
+    what: &str,
+) -> Result<Vec<f32>> {
+    let proto = denoiser.onnx()?;
+    let mut engine = dips_onnx::TractEngine::from_model_proto(&proto)?;
+    let dims = denoiser.task.dims();
+    let mdims = engine.contract().dims();
+    let (td, f, sd) = (dims.floats(), dims.fingers, dims.state_dim);
+    let layout = ScratchLayout::new(mdims, SAMPLER_CHUNK);
+    let mut buf = vec![0f32; layout.total()];
+    let mut out = vec![0f32; real.n * td];
+    let pb = bar(opts, real.n as u64, what);
+    for (c, start) in (0..real.n).step_by(SAMPLER_CHUNK).enumerate() {
+        let n = (real.n - start).min(SAMPLER_CHUNK);
+        let starts: Vec<f32> = (start..start + n)
+            .flat_map(|i| real.x[i * td..i * td + sd].iter().copied())
+            .collect();
+        let request = SampleRequest {
+            context: &real.context[start * f..(start + n) * f],
+            start_states: Some(&starts),
+        };
+        let mut scratch = SamplerScratch::split(&mut buf, &layout)
+            .map_err(|e| TrainError::Sampler(e.to_string()))?;
+        let mut rng = stream(seed, purpose::SAMPLER, c as u64);
+        sample(
+            &mut engine,
+            config,
+            &request,
+            &mut rng,
+            &mut scratch,
+            &mut out[start * td..(start + n) * td],
+        )
+        .map_err(|e| TrainError::Sampler(e.to_string()))?;
+        pb.inc(n as u64);
+    }
+    pb.finish_and_clear();
+    Ok(out)
+}
+
+/// Area under the ROC curve of scores for positives versus negatives (ties count half).
+pub fn auc(pos: &[f32], neg: &[f32]) -> f32 {
+    if pos.is_empty() || neg.is_empty() {
+        return f32::NAN;
+    }
+    let mut all: Vec<(f32, bool)> = pos
+        .iter()
+        .map(|&p| (p, true))
+        .chain(neg.iter().map(|&n| (n, false)))
+        .collect();
+    all.sort_by(|a, b| a.0.total_cmp(&b.0));
+    // Mann–Whitney U with average ranks for ties.
+    let mut rank_sum_pos = 0f64;
+    let mut i = 0;
+    while i < all.len() {
+        let mut j = i;
+        while j < all.len() && all[j].0 == all[i].0 {
+            j += 1;
+        }
+        let avg = (i + j + 1) as f64 / 2.0; // ranks i+1..=j
+        rank_sum_pos += avg * all[i..j].iter().filter(|e| e.1).count() as f64;
+        i = j;
+    }
+    let (np, nn) = (pos.len() as f64, neg.len() as f64);
+    ((rank_sum_pos - np * (np + 1.0) / 2.0) / (np * nn)) as f32
+}
+
+fn read_cache(path: &Path, key: &str, len: usize) -> Option<Vec<f32>> {
+    let buf = std::fs::read(path).ok()?;
+    let (_, md) = SafeTensors::read_metadata(&buf).ok()?;
+    if md.metadata().as_ref()?.get("key")? != key {
+        return None;
+    }
+    let st = SafeTensors::deserialize(&buf).ok()?;
+    let v = st.tensor("fakes").ok()?;
+    if v.dtype() != Dtype::F32 || v.data().len() != len * 4 {
+        return None;
+    }
+    Some(
+        v.data()
+            .chunks_exact(4)
+            .map(|c| f32::from_le_bytes([c[0], c[1], c[2], c[3]]))
+            .collect(),
+    )
+}
+
+fn write_cache(path: &Path, key: &str, v: &[f32]) -> Result<()> {
+    let bytes = dips_dataset::f32_bytes(v);
+    let view =
+        TensorView::new(Dtype::F32, vec![v.len()], &bytes).map_err(|e| TrainError::Checkpoint {
+            path: path.to_path_buf(),
+            reason: e.to_string(),
+        })?;
+    let meta = HashMap::from([("key".to_string(), key.to_string())]);
+    let buf = safetensors::serialize([("fakes", view)], Some(meta)).map_err(|e| {
+        TrainError::Checkpoint {
+            path: path.to_path_buf(),
+            reason: e.to_string(),
+        }
+    })?;
+    dips_dataset::write_atomic(path, &buf).map_err(io_err(path))
+}
+
+/// Real and diffused trajectories, normalised.
+struct Pairs {
+    real: Vec<f32>,
+    fake: Vec<f32>,
+    context: Vec<f32>,
+    n: usize,
+}
+
+fn pairs(
+    real: Samples,
+    denoiser: &TrainedDenoiser,
+    settings: &TrainSettings,
+    cache: &Path,
+    seed: u64,
+    opts: &RunOptions,
+    what: &str,
+) -> Result<(Pairs, f64)> {
+    let s = &settings.discriminator;
+    let config = SamplerConfig {
+        method: SamplingMethod::Ddpm {
+            noise_factor: s.noise_factor,
+        },
+        guidance_weight: s.guidance_weight,
+    };
+    let key = format!(
+        "{}-{}-{}-{}-{seed}",
+        fingerprint(
+            &denoiser
+                .params
+                .data
+                .iter()
+                .map(Vec::as_slice)
+                .collect::<Vec<_>>()
+        ),
+        fingerprint(&[&real.x, &real.context]),
+        s.noise_factor,
+        s.guidance_weight
+    );
+    let t0 = Instant::now();
+    let mut fake = match read_cache(cache, &key, real.x.len()) {
+        Some(v) => v,
+        None => {
+            let v = diffuse_like(denoiser, &real, &config, seed, opts, what)?;
+            write_cache(cache, &key, &v)?;
+            v
+        }
+    };
+    let secs = t0.elapsed().as_secs_f64();
+    let mut r = real.x;
+    denoiser.norm.normalize(&mut r);
+    denoiser.norm.normalize(&mut fake);
+    Ok((
+        Pairs {
+            real: r,
+            fake,
+            context: real.context,
+            n: real.n,
+        },
+        secs,
+    ))
+}
+
+/// Scores of real and diffused trajectories, and the mean BCE.
+fn evaluate(
+    net: &Discriminator,
+    params: &ParamStore,
+    p: &Pairs,
+    dims: SegmentDims,
+) -> Result<(Vec<f32>, Vec<f32>, f32)> {
+    let dev = Device::flex();
+    let pt = params.tensors(&dev, false);
+    let (td, f) = (dims.floats(), dims.fingers);
+    let mut scores = [Vec::new(), Vec::new()];
+    for (k, x) in [&p.real, &p.fake].into_iter().enumerate() {
+        let mut i = 0;
+        while i < p.n {
+            let b = (p.n - i).min(256);
+            let z = net.logit(
+                &pt,
+                tensor(
+                    x[i * td..(i + b) * td].to_vec(),
+                    [b, dims.horizon, dims.dim()],
+                    &dev,
+                ),
+                tensor(p.context[i * f..(i + b) * f].to_vec(), [b, f], &dev),
+            );
+            scores[k].extend(to_vec(z)?);
+            i += b;
+        }
+    }
+    // BCE from logits: softplus(z) − y·z.
+    let sp = |z: f32| z.max(0.0) + (-z.abs()).exp().ln_1p();
+    let bce = scores[0].iter().map(|&z| sp(z) - z).sum::<f32>()
+        + scores[1].iter().map(|&z| sp(z)).sum::<f32>();
+    let [real, fake] = scores;
+    let n = (real.len() + fake.len()).max(1) as f32;
+    Ok((real, fake, bce / n))
+}
+
+fn accuracy(real: &[f32], fake: &[f32]) -> f32 {
+    let ok = real.iter().filter(|&&z| z > 0.0).count() + fake.iter().filter(|&&z| z <= 0.0).count();
+    ok as f32 / (real.len() + fake.len()).max(1) as f32
+}
+
+/// Train the discriminator against the diffused trajectories of `denoiser`.
+///
+/// Checkpoints go to `out_dir/checkpoints/discriminator.safetensors` (resumed like the
+/// denoiser's); the diffused trajectories are cached beside it.
+pub fn train_discriminator(
+    ds: &Dataset,
+    settings: &TrainSettings,
+    denoiser: &TrainedDenoiser,
+    out_dir: &Path,
+    opts: &RunOptions,
+) -> Result<TrainedDiscriminator> {
+    settings.validate()?;
+    let started = Instant::now();
+    let task = ds.task;
+    let dims = ds.dims();
+    let s = &settings.discriminator;
+    let (train, held) = split_samples(ds, settings)?;
+    let ckd = checkpoint_dir(out_dir)?;
+    let (tp, mut sampling_s) = pairs(
+        train.subset(s.samples, dims),
+        denoiser,
+        settings,
+        &ckd.join("disc_fakes_train.safetensors"),
+        settings.seed,
+        opts,
+        "diffuse train",
+    )?;
+    let ep = if held.n > 0 {
+        let (p, secs) = pairs(
+            held.subset(s.eval_samples, dims),
+            denoiser,
+            settings,
+            &ckd.join("disc_fakes_held_out.safetensors"),
+            settings.seed ^ 0x5eed,
+            opts,
+            "diffuse eval",
+        )?;
+        sampling_s += secs;
+        Some(p)
+    } else {
+        None
+    };
+
+    let mut params = ParamStore::default();
+    let net = Discriminator::new(
+        &mut params,
+        net_dims(dims),
+        &settings.net,
+        &mut stream(settings.seed, purpose::INIT_DISCRIMINATOR, 0),
+    );
+    let ck_path = ckd.join("discriminator.safetensors");
+    let meta = HashMap::from([
+        (
+            "settings".to_string(),
+            serde_json::to_string(settings).unwrap_or_default(),
+        ),
+        ("task".to_string(), task.name().to_string()),
+        (
+            "data".to_string(),
+            fingerprint(&[&tp.real, &tp.fake, &tp.context]),
+        ),
+    ]);
+    let mut optim = OptimState::new(&params);
+    if let Some(ck) = resume(&ck_path, &params, &meta, opts)? {
+        params = ck.params;
+        optim = ck.optim;
+    }
+    let resumed_from = optim.step;
+
+    let dev = Device::flex().autodiff();
+    let (td, f) = (dims.floats(), dims.fingers);
+    let half = s.batch / 2;
+    let b = 2 * half;
+    let mut labels = vec![1.0f32; half];
+    labels.extend(vec![0.0f32; half]);
+    let pb = bar(opts, s.steps as u64, "discriminator");
+    pb.set_position(optim.step as u64);
+    let mut cache = None;
+    let mut recent = Vec::new();
+    let loop_start = Instant::now();
+    while optim.step < s.steps {
+        let step = optim.step;
+        let idx = batch_indices(
+            settings.seed,
+            purpose::DISC_ORDER,
+            step,
+            half,
+            tp.n,
+            &mut cache,
+        );
+        let mut x = Vec::with_capacity(b * td);
+        let mut c = Vec::with_capacity(b * f);
+        for src in [&tp.real, &tp.fake] {
+            for &i in &idx {
+                x.extend_from_slice(&src[i * td..(i + 1) * td]);
+                c.extend_from_slice(&tp.context[i * f..(i + 1) * f]);
+            }
+        }
+        let p = params.tensors(&dev, true);
+        let z = net.logit(
+            &p,
+            tensor(x, [b, dims.horizon, dims.dim()], &dev),
+            tensor(c, [b, f], &dev),
+        );
+        let y = tensor(labels.clone(), [b, 1], &dev);
+        let loss = (softplus(z.clone(), 1.0) - z * y).mean();
+        let grads = loss.backward();
+        let lv = to_vec(loss.detach())?.first().copied().unwrap_or(f32::NAN);
+        if !lv.is_finite() {
+            return Err(TrainError::Diverged { step, loss: lv });
+        }
+        let g: Vec<Option<Vec<f32>>> = p
+            .iter()
+            .map(|t| t.grad(&grads).map(to_vec).transpose())
+            .collect::<Result<_>>()?;
+        optim.adam(&mut params, &g, s.lr);
+        recent.push(lv);
+        if recent.len() > 100 {
+            recent.remove(0);
+        }
+        pb.set_position(optim.step as u64);
+        pb.set_message(format!("bce {lv:.4}"));
+        let done = optim.step == s.steps;
+        let every = settings.checkpoint_every;
+        let stop = opts.stop_after == Some(optim.step);
+        if done || stop || (every > 0 && optim.step.is_multiple_of(every)) {
+            Checkpoint {
+                params: params.clone(),
+                optim: optim.clone(),
+                meta: meta.clone(),
+            }
+            .save(&ck_path)?;
+        }
+        if stop && !done {
+            pb.finish_and_clear();
+            return Err(TrainError::Stopped { step: optim.step });
+        }
+    }
+    pb.finish_and_clear();
+    let steps_run = s.steps - resumed_from;
+    let step_time_s = if steps_run > 0 {
+        loop_start.elapsed().as_secs_f64() / steps_run as f64
+    } else {
+        0.0
+    };
+    let (tr, tf, _) = evaluate(&net, &params, &tp, dims)?;
+    let (held_out_loss, held_out_accuracy, held_out_auc) = match &ep {
+        Some(ep) => {
+            let (r, f_, l) = evaluate(&net, &params, ep, dims)?;
+            (Some(l), Some(accuracy(&r, &f_)), Some(auc(&r, &f_)))
+        }
+        None => (None, None, None),
+    };
+    let report = DiscriminatorReport {
+        params: params.count(),
+        train_pairs: tp.n,
+        eval_pairs: ep.as_ref().map_or(0, |p| p.n),
+        steps: s.steps,
+        resumed_from,
+        sampling_s,
+        train_loss_final: recent.iter().sum::<f32>() / recent.len().max(1) as f32,
+        held_out_loss,
+        held_out_accuracy,
+        held_out_auc,
+        train_accuracy: accuracy(&tr, &tf),
+        step_time_s,
+        seconds: started.elapsed().as_secs_f64(),
+    };
+    Ok(TrainedDiscriminator {
+        task,
+        net,
+        params,
+        norm: denoiser.norm.clone(),
+        diffusion_steps: denoiser.diffusion_steps,
+        report,
+    })
+}

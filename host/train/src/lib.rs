@@ -1,0 +1,119 @@
+//! `dips-train`: offline training of the DIPS models in Rust on burn (`flex` CPU backend) and
+//! their export to ONNX under model contract v1.
+//!
+//! - [`train_denoiser`]: the temporal U-Net ε-denoiser (spec §4.1–§4.3);
+//! - [`train_discriminator`]: Ψ on real versus diffused trajectories (spec §4.5);
+//! - [`export`]: contract-v1 ONNX written with `tract_onnx::pb`;
+//! - [`run`]: all of it, writing `denoiser.onnx`, `discriminator.onnx` and
+//!   `train_report.json` into a model directory.
+//!
+//! burn is used for the forward and backward passes only; parameters, Adam, the EMA, random
+//! streams and checkpoints are ours (see [`params`]), so a run is deterministic for its seed and
+//! a resumed run equals an uninterrupted one bit for bit. See `docs/training.md`.
+
+pub mod data;
+pub mod denoiser;
+pub mod discriminator;
+pub mod error;
+pub mod export;
+mod graph;
+pub mod net;
+pub mod params;
+pub mod progress;
+pub mod settings;
+pub mod synthetic;
+
+use std::path::{Path, PathBuf};
+
+use dips_kernel::mode::Task;
+use serde::Serialize;
+
+pub use denoiser::{DenoiserReport, TrainedDenoiser, train_denoiser};
+pub use discriminator::{DiscriminatorReport, TrainedDiscriminator, train_discriminator};
+pub use error::{Result, TrainError};
+pub use graph::OPSET;
+pub use progress::RunOptions;
+pub use settings::{DenoiserSettings, DiscriminatorSettings, NetSettings, TrainSettings};
+
+use crate::error::io_err;
+
+/// File names in a model directory.
+pub const DENOISER_FILE: &str = "denoiser.onnx";
+/// The discriminator's file name.
+pub const DISCRIMINATOR_FILE: &str = "discriminator.onnx";
+/// The report's file name.
+pub const REPORT_FILE: &str = "train_report.json";
+
+/// What [`run`] writes to `train_report.json`.
+#[derive(Debug, Clone, Serialize)]
+pub struct TrainReport {
+    /// The task.
+    pub task: String,
+    /// The dataset directory.
+    pub data_dir: PathBuf,
+    /// Demos and trajectories read.
+    pub demos: usize,
+    /// Trajectories read.
+    pub samples: usize,
+    /// Seeds of the held-out demos.
+    pub held_out_seeds: Vec<u64>,
+    /// The settings.
+    pub settings: TrainSettings,
+    /// The denoiser's figures.
+    pub denoiser: DenoiserReport,
+    /// The discriminator's figures.
+    pub discriminator: DiscriminatorReport,
+    /// The normalisation written into both models.
+    pub norm_mean: Vec<f32>,
+    /// The normalisation's standard deviations.
+    pub norm_std: Vec<f32>,
+}
+
+/// Write the denoiser to `path` (validated against contract v1 first).
+pub fn export_denoiser(d: &TrainedDenoiser, path: &Path) -> Result<dips_onnx::Contract> {
+    export::write_model(path, &d.onnx()?)
+}
+
+/// Write the discriminator to `path` (validated against contract v1 first).
+pub fn export_discriminator(d: &TrainedDiscriminator, path: &Path) -> Result<dips_onnx::Contract> {
+    export::write_model(path, &d.onnx()?)
+}
+
+/// Read the dataset in `data_dir`, train both models, and write `denoiser.onnx`,
+/// `discriminator.onnx` and `train_report.json` into `out_dir` (checkpoints under
+/// `out_dir/checkpoints/`; a killed run resumes from them).
+pub fn run(
+    task: Task,
+    data_dir: &Path,
+    out_dir: &Path,
+    settings: &TrainSettings,
+    opts: &RunOptions,
+) -> Result<TrainReport> {
+    settings.validate()?;
+    let ds = dips_dataset::read_dir(data_dir, task)?;
+    std::fs::create_dir_all(out_dir).map_err(io_err(out_dir))?;
+    let den = train_denoiser(&ds, settings, out_dir, opts)?;
+    export_denoiser(&den, &out_dir.join(DENOISER_FILE))?;
+    let disc = train_discriminator(&ds, settings, &den, out_dir, opts)?;
+    export_discriminator(&disc, &out_dir.join(DISCRIMINATOR_FILE))?;
+    let split = ds.split(settings.held_out_fraction);
+    let report = TrainReport {
+        task: task.name().to_string(),
+        data_dir: data_dir.to_path_buf(),
+        demos: ds.demos.len(),
+        samples: ds.samples(),
+        held_out_seeds: split.held_out.iter().map(|&i| ds.demos[i].seed).collect(),
+        settings: settings.clone(),
+        denoiser: den.report.clone(),
+        discriminator: disc.report.clone(),
+        norm_mean: den.norm.mean.clone(),
+        norm_std: den.norm.std.clone(),
+    };
+    let path = out_dir.join(REPORT_FILE);
+    let json = serde_json::to_vec_pretty(&report).map_err(|e| TrainError::Io {
+        path: path.clone(),
+        source: std::io::Error::other(e),
+    })?;
+    dips_dataset::write_atomic(&path, &json).map_err(io_err(&path))?;
+    Ok(report)
+}

@@ -1,0 +1,252 @@
+//! Training settings and their validation.
+
+use serde::{Deserialize, Serialize};
+
+use crate::error::{Result, TrainError};
+
+/// The network shape shared by the denoiser and the discriminator (spec §4.1, §4.5).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct NetSettings {
+    /// Channels per resolution stage; the number of entries is the number of stages. The time
+    /// axis of the denoiser is zero-padded to a multiple of `2^(stages−1)` and cropped back.
+    pub widths: Vec<usize>,
+    /// Residual blocks in the middle (at the coarsest resolution).
+    pub mid_blocks: usize,
+    /// Width of the shared conditioning embedding that every residual block reads.
+    pub embed_dim: usize,
+    /// Width of the sinusoidal step embedding (even).
+    pub time_embed_dim: usize,
+    /// Width of the context (contact-mode) embedding.
+    pub context_embed_dim: usize,
+    /// GroupNorm groups (every width must be a multiple).
+    pub groups: usize,
+}
+
+impl Default for NetSettings {
+    fn default() -> Self {
+        Self {
+            widths: vec![32, 64, 128],
+            mid_blocks: 2,
+            embed_dim: 64,
+            time_embed_dim: 32,
+            context_embed_dim: 32,
+            groups: 8,
+        }
+    }
+}
+
+/// Settings of the denoiser's training.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct DenoiserSettings {
+    /// Diffusion steps `N` of the cosine schedule.
+    pub diffusion_steps: usize,
+    /// Probability of zeroing a sample's context embedding (classifier-free guidance).
+    pub context_dropout: f32,
+    /// Screwdriver only: add a uniform yaw offset in [−π, π) to every training trajectory.
+    pub augment_yaw: bool,
+    /// Trajectories per optimiser step.
+    pub batch: usize,
+    /// Optimiser steps.
+    pub steps: usize,
+    /// Adam learning rate.
+    pub lr: f64,
+    /// EMA decay per EMA update.
+    pub ema_decay: f32,
+    /// Steps between EMA updates.
+    pub ema_every: usize,
+    /// Steps during which the EMA is a plain copy; `None`: `min(1000, steps / 5)`.
+    pub ema_warmup: Option<usize>,
+}
+
+impl Default for DenoiserSettings {
+    fn default() -> Self {
+        Self {
+            diffusion_steps: 256,
+            context_dropout: 0.25,
+            augment_yaw: true,
+            batch: 256,
+            steps: 20_000,
+            lr: 1e-3,
+            ema_decay: 0.995,
+            ema_every: 10,
+            ema_warmup: None,
+        }
+    }
+}
+
+/// Settings of the discriminator's training.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct DiscriminatorSettings {
+    /// Real training trajectories (and as many diffused ones) the discriminator learns from.
+    pub samples: usize,
+    /// Held-out real trajectories (and as many diffused ones) for accuracy and AUC.
+    pub eval_samples: usize,
+    /// Trajectories per optimiser step (half real, half diffused).
+    pub batch: usize,
+    /// Optimiser steps.
+    pub steps: usize,
+    /// Adam learning rate.
+    pub lr: f64,
+    /// Classifier-free guidance weight of the sampler that makes the diffused trajectories.
+    pub guidance_weight: f32,
+    /// Noise factor of the ancestral DDPM sampler (0.5 in the DIPS code).
+    pub noise_factor: f32,
+}
+
+impl Default for DiscriminatorSettings {
+    fn default() -> Self {
+        Self {
+            samples: 4096,
+            eval_samples: 512,
+            batch: 128,
+            steps: 3000,
+            lr: 1e-3,
+            guidance_weight: dips_kernel::diffusion::DEFAULT_GUIDANCE_WEIGHT,
+            noise_factor: dips_kernel::diffusion::DEFAULT_NOISE_FACTOR,
+        }
+    }
+}
+
+/// Everything a training run is made of. `Default` gives the shipped defaults.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct TrainSettings {
+    /// Seed of everything random: initialisation, data order, masks, noise, the split is by
+    /// demo seed and does not use it.
+    pub seed: u64,
+    /// Fraction of demos held out (by demo seed).
+    pub held_out_fraction: f64,
+    /// Held-out trajectories the held-out denoiser loss is averaged over (fixed draws).
+    pub eval_samples: usize,
+    /// Lower bound of a column's normalisation std (constant columns).
+    pub std_floor: f32,
+    /// Optimiser steps between checkpoints (0: only at the end).
+    pub checkpoint_every: usize,
+    /// The network shape (both models).
+    pub net: NetSettings,
+    /// The denoiser's training.
+    pub denoiser: DenoiserSettings,
+    /// The discriminator's training.
+    pub discriminator: DiscriminatorSettings,
+}
+
+impl Default for TrainSettings {
+    fn default() -> Self {
+        Self {
+            seed: 0,
+            held_out_fraction: 0.1,
+            eval_samples: 2048,
+            std_floor: 1e-4,
+            checkpoint_every: 500,
+            net: NetSettings::default(),
+            denoiser: DenoiserSettings::default(),
+            discriminator: DiscriminatorSettings::default(),
+        }
+    }
+}
+
+fn bad(field: &str, reason: impl Into<String>) -> TrainError {
+    TrainError::Settings {
+        field: field.to_string(),
+        reason: reason.into(),
+    }
+}
+
+impl NetSettings {
+    /// Check the network shape.
+    pub fn validate(&self) -> Result<()> {
+        if self.widths.is_empty() || self.widths.len() > 6 {
+            return Err(bad("net.widths", "needs 1 to 6 stages"));
+        }
+        if self.groups == 0 {
+            return Err(bad("net.groups", "must be positive"));
+        }
+        for (i, &w) in self.widths.iter().enumerate() {
+            if w == 0 || w % self.groups != 0 || w > 4096 {
+                return Err(bad(
+                    "net.widths",
+                    format!(
+                        "widths[{i}] = {w} must be a positive multiple of net.groups = {} (≤ 4096)",
+                        self.groups
+                    ),
+                ));
+            }
+        }
+        if self.embed_dim == 0 || self.context_embed_dim == 0 {
+            return Err(bad(
+                "net.embed_dim",
+                "embed_dim and context_embed_dim must be positive",
+            ));
+        }
+        if self.time_embed_dim < 4 || !self.time_embed_dim.is_multiple_of(2) {
+            return Err(bad("net.time_embed_dim", "must be even and at least 4"));
+        }
+        Ok(())
+    }
+
+    /// Stages (resolutions).
+    pub fn stages(&self) -> usize {
+        self.widths.len()
+    }
+}
+
+impl TrainSettings {
+    /// Check every setting; the error names the field.
+    pub fn validate(&self) -> Result<()> {
+        self.net.validate()?;
+        let d = &self.denoiser;
+        if !(2..=100_000).contains(&d.diffusion_steps) {
+            return Err(bad("denoiser.diffusion_steps", "must be in 2..=100000"));
+        }
+        if !(0.0..1.0).contains(&d.context_dropout) {
+            return Err(bad("denoiser.context_dropout", "must be in [0, 1)"));
+        }
+        if d.batch == 0 {
+            return Err(bad("denoiser.batch", "must be positive"));
+        }
+        if d.steps == 0 {
+            return Err(bad("denoiser.steps", "must be positive"));
+        }
+        if !(d.lr.is_finite() && d.lr > 0.0) {
+            return Err(bad("denoiser.lr", "must be positive and finite"));
+        }
+        if !(0.0..1.0).contains(&d.ema_decay) {
+            return Err(bad("denoiser.ema_decay", "must be in [0, 1)"));
+        }
+        if d.ema_every == 0 {
+            return Err(bad("denoiser.ema_every", "must be positive"));
+        }
+        let s = &self.discriminator;
+        if s.samples == 0 || s.batch < 2 || s.steps == 0 {
+            return Err(bad(
+                "discriminator",
+                "samples and steps must be positive and batch at least 2",
+            ));
+        }
+        if !(s.lr.is_finite() && s.lr > 0.0) {
+            return Err(bad("discriminator.lr", "must be positive and finite"));
+        }
+        if !(s.guidance_weight.is_finite() && s.noise_factor.is_finite() && s.noise_factor >= 0.0) {
+            return Err(bad(
+                "discriminator.guidance_weight",
+                "guidance weight and noise factor must be finite, noise factor ≥ 0",
+            ));
+        }
+        if !(0.0..1.0).contains(&self.held_out_fraction) {
+            return Err(bad("held_out_fraction", "must be in [0, 1)"));
+        }
+        if self.eval_samples == 0 {
+            return Err(bad("eval_samples", "must be positive"));
+        }
+        if !(self.std_floor.is_finite() && self.std_floor > 0.0) {
+            return Err(bad("std_floor", "must be positive and finite"));
+        }
+        Ok(())
+    }
+
+    /// The EMA warm-up in steps.
+    pub fn ema_warmup(&self) -> usize {
+        self.denoiser
+            .ema_warmup
+            .unwrap_or((self.denoiser.steps / 5).min(1000))
+    }
+}

@@ -1,0 +1,260 @@
+//! Training on a tiny synthetic dataset: the loss falls, the export agrees with both engines,
+//! a resumed run equals an uninterrupted one, bad input is a typed error.
+
+use std::path::PathBuf;
+
+use dips_dataset::{Dataset, read_dir};
+use dips_kernel::mode::Task;
+use dips_kernel::rng::KernelRng;
+use dips_onnx::{KernelHostEngine, TractEngine, lower_proto};
+use dips_train::{
+    RunOptions, TrainError, TrainSettings, synthetic, train_denoiser, train_discriminator,
+};
+
+fn tmp(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("dips-train-{name}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+fn dataset(task: Task, name: &str, demos: usize) -> (PathBuf, Dataset) {
+    let dir = tmp(name);
+    synthetic::write_dataset(&dir.join("data"), task, demos, 100, 3, 2, 4).unwrap();
+    let ds = read_dir(&dir.join("data"), task).unwrap();
+    (dir, ds)
+}
+
+fn tiny(task: Task) -> TrainSettings {
+    let mut s = TrainSettings::default();
+    s.net.widths = if task == Task::Card {
+        vec![8, 16]
+    } else {
+        vec![8, 16, 16]
+    };
+    s.net.mid_blocks = 1;
+    s.net.embed_dim = 16;
+    s.net.time_embed_dim = 8;
+    s.net.context_embed_dim = 8;
+    s.held_out_fraction = 0.2;
+    s.eval_samples = 64;
+    s.checkpoint_every = 0;
+    s.denoiser.diffusion_steps = 16;
+    s.denoiser.batch = 32;
+    s.denoiser.steps = 60;
+    s.denoiser.lr = 3e-3;
+    s.denoiser.ema_decay = 0.9;
+    s.denoiser.ema_every = 1;
+    s.discriminator.samples = 48;
+    s.discriminator.eval_samples = 24;
+    s.discriminator.batch = 16;
+    s.discriminator.steps = 30;
+    s
+}
+
+/// Max of |a−b| / (1e-4·|b| + 1e-5) (≤ 1 passes the contract's agreement rule).
+fn worst(a: &[f32], b: &[f32]) -> f32 {
+    assert_eq!(a.len(), b.len());
+    a.iter()
+        .zip(b)
+        .map(|(x, y)| (x - y).abs() / (1e-4 * y.abs() + 1e-5))
+        .fold(0.0, f32::max)
+}
+
+fn normals(n: usize, rng: &mut KernelRng) -> Vec<f32> {
+    (0..n).map(|_| rng.normal_f32()).collect()
+}
+
+#[test]
+fn training_lowers_the_held_out_loss() {
+    let (dir, ds) = dataset(Task::Card, "loss", 10);
+    let mut s = tiny(Task::Card);
+    s.net.widths = vec![16, 32];
+    s.denoiser.steps = 250;
+    let d = train_denoiser(&ds, &s, &dir, &RunOptions::default()).unwrap();
+    let r = &d.report;
+    eprintln!("{r:?}");
+    let (init, fin) = (r.held_out_loss_initial.unwrap(), r.held_out_loss.unwrap());
+    assert!(fin < 0.85 * init, "held-out loss {init} → {fin}");
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+fn check_export(task: Task) {
+    let (dir, ds) = dataset(task, task.name(), 6);
+    let s = tiny(task);
+    let opts = RunOptions::default();
+    let den = train_denoiser(&ds, &s, &dir, &opts).unwrap();
+    let disc = train_discriminator(&ds, &s, &den, &dir, &opts).unwrap();
+    eprintln!("{:?}", disc.report);
+
+    let dims = task.dims();
+    let (b, td, f) = (5, dims.floats(), dims.fingers);
+    let mut rng = KernelRng::seed_from_u64(9);
+    let x = normals(b * td, &mut rng);
+    let t: Vec<f32> = (0..b).map(|i| (i * 3) as f32).collect();
+    let ctx: Vec<f32> = (0..b * f)
+        .map(|i| if i % 3 == 0 { -1.0 } else { 1.0 })
+        .collect();
+    let cond = vec![1.0, 0.0, 1.0, 1.0, 0.0];
+
+    // Denoiser: contract, tract, kernel.
+    let proto = den.onnx().unwrap();
+    let c = dips_onnx::contract::validate(&proto).unwrap();
+    assert_eq!(c.norm_mean, den.norm.mean);
+    let want = den.forward(b, &x, &t, &ctx, &cond).unwrap();
+    let mut got = vec![0.0; b * td];
+    TractEngine::from_model_proto(&proto)
+        .unwrap()
+        .run(b, &[&x, &t, &ctx, &cond], &mut got)
+        .unwrap();
+    let wt = worst(&got, &want);
+    let mut kernel = KernelHostEngine::from_lowered(lower_proto(&proto).unwrap()).unwrap();
+    kernel.run(b, &[&x, &t, &ctx, &cond], &mut got).unwrap();
+    let wk = worst(&got, &want);
+    eprintln!(
+        "{} denoiser: worst/tolerance tract {wt}, kernel {wk}",
+        task.name()
+    );
+    assert!(wt <= 1.0 && wk <= 1.0, "tract {wt}, kernel {wk}");
+
+    // Discriminator.
+    let proto = disc.onnx().unwrap();
+    dips_onnx::contract::validate(&proto).unwrap();
+    let want = disc.forward(b, &x, &ctx).unwrap();
+    let mut got = vec![0.0; b];
+    TractEngine::from_model_proto(&proto)
+        .unwrap()
+        .run(b, &[&x, &ctx], &mut got)
+        .unwrap();
+    let wt = worst(&got, &want);
+    let mut kernel = KernelHostEngine::from_lowered(lower_proto(&proto).unwrap()).unwrap();
+    kernel.run(b, &[&x, &ctx], &mut got).unwrap();
+    let wk = worst(&got, &want);
+    eprintln!(
+        "{} discriminator: worst/tolerance tract {wt}, kernel {wk}",
+        task.name()
+    );
+    assert!(wt <= 1.0 && wk <= 1.0, "tract {wt}, kernel {wk}");
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
+fn card_export_agrees_with_both_engines() {
+    check_export(Task::Card);
+}
+
+#[test]
+fn screwdriver_export_agrees_with_both_engines() {
+    check_export(Task::Screwdriver);
+}
+
+#[test]
+fn resumed_run_equals_uninterrupted_run() {
+    let (dir, ds) = dataset(Task::Screwdriver, "resume", 5);
+    let mut s = tiny(Task::Screwdriver);
+    s.denoiser.steps = 12;
+    s.discriminator.steps = 10;
+    s.checkpoint_every = 5;
+    let opts = RunOptions::default();
+    let (a, b) = (dir.join("a"), dir.join("b"));
+    let whole = train_denoiser(&ds, &s, &a, &opts).unwrap();
+    let killed = RunOptions {
+        stop_after: Some(7),
+        ..RunOptions::default()
+    };
+    assert!(matches!(
+        train_denoiser(&ds, &s, &b, &killed),
+        Err(TrainError::Stopped { step: 7 })
+    ));
+    let resumed = train_denoiser(&ds, &s, &b, &opts).unwrap();
+    assert_eq!(resumed.report.resumed_from, 7);
+    assert_eq!(resumed.params, whole.params, "EMA parameters differ");
+    assert_eq!(resumed.report.held_out_loss, whole.report.held_out_loss);
+
+    let dw = train_discriminator(&ds, &s, &whole, &a, &opts).unwrap();
+    let killed = RunOptions {
+        stop_after: Some(4),
+        ..RunOptions::default()
+    };
+    assert!(matches!(
+        train_discriminator(&ds, &s, &resumed, &b, &killed),
+        Err(TrainError::Stopped { step: 4 })
+    ));
+    let dr = train_discriminator(&ds, &s, &resumed, &b, &opts).unwrap();
+    assert_eq!(dr.report.resumed_from, 4);
+    assert_eq!(dr.params, dw.params, "discriminator parameters differ");
+
+    // Another run's checkpoint is refused, not silently resumed.
+    let mut other = s.clone();
+    other.denoiser.lr *= 2.0;
+    let e = train_denoiser(&ds, &other, &b, &opts).unwrap_err();
+    assert!(matches!(e, TrainError::Checkpoint { .. }), "{e}");
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
+fn bad_settings_and_bad_files_are_typed_errors() {
+    let mut s = TrainSettings::default();
+    assert!(s.validate().is_ok());
+    s.net.widths = vec![12, 16];
+    let e = s.validate().unwrap_err();
+    assert!(
+        matches!(&e, TrainError::Settings { field, .. } if field == "net.widths"),
+        "{e}"
+    );
+    let mut s = TrainSettings::default();
+    s.denoiser.lr = f64::NAN;
+    assert!(matches!(s.validate(), Err(TrainError::Settings { .. })));
+    let s = TrainSettings {
+        held_out_fraction: 1.0,
+        ..TrainSettings::default()
+    };
+    assert!(matches!(s.validate(), Err(TrainError::Settings { .. })));
+
+    let dir = tmp("bad");
+    let e = dips_train::run(
+        Task::Card,
+        &dir.join("nowhere"),
+        &dir.join("out"),
+        &TrainSettings::default(),
+        &RunOptions::default(),
+    )
+    .unwrap_err();
+    assert!(matches!(e, TrainError::Dataset(_)), "{e}");
+    std::fs::create_dir_all(dir.join("data/demos")).unwrap();
+    std::fs::write(dir.join("data/demos/broken.safetensors"), b"\x10\0\0\0").unwrap();
+    let e = dips_train::run(
+        Task::Card,
+        &dir.join("data"),
+        &dir.join("out"),
+        &TrainSettings::default(),
+        &RunOptions::default(),
+    )
+    .unwrap_err();
+    assert!(e.to_string().contains("broken.safetensors"), "{e}");
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
+fn run_writes_the_model_directory() {
+    let (dir, _) = dataset(Task::Card, "run", 5);
+    let mut s = tiny(Task::Card);
+    s.denoiser.steps = 10;
+    s.discriminator.steps = 5;
+    let out = dir.join("models");
+    let r = dips_train::run(
+        Task::Card,
+        &dir.join("data"),
+        &out,
+        &s,
+        &RunOptions::default(),
+    )
+    .unwrap();
+    assert_eq!(r.demos, 5);
+    for f in ["denoiser.onnx", "discriminator.onnx", "train_report.json"] {
+        assert!(out.join(f).is_file(), "{f}");
+    }
+    let e = dips_onnx::contract::Expectation::new(dips_onnx::Role::Denoiser, "card");
+    TractEngine::load(&out.join("denoiser.onnx"), &e).unwrap();
+    std::fs::remove_dir_all(&dir).unwrap();
+}
