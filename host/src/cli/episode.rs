@@ -4,9 +4,8 @@ use std::path::PathBuf;
 
 use anyhow::{Context, bail};
 use clap::Args;
-use dips_kernel::rng::KernelRng;
 
-use crate::execute::{ExecSettings, run_episode, sample_prior_sequence};
+use crate::execute::{ExecSettings, prior_sequence_for_seed, run_episode};
 use crate::problems::Mode;
 use crate::scenes::SceneKind;
 
@@ -58,13 +57,12 @@ pub fn run(args: EpisodeArgs) -> anyhow::Result<()> {
         }
         bail!("unknown method `{}`; available: csvto-sampled", args.method);
     }
-    let mut rng = KernelRng::seed_from_u64(args.seed ^ 0x5eed_c0de);
     let modes: Vec<Mode> = match &args.modes {
         Some(names) => names
             .iter()
             .map(|n| Mode::from_name(task, n.trim()))
             .collect::<Result<_, _>>()?,
-        None => sample_prior_sequence(task, &mut rng),
+        None => prior_sequence_for_seed(task, args.seed),
     };
     let settings = ExecSettings::for_task(task);
     let mut progress = |line: &str| eprintln!("{line}");

@@ -7,7 +7,7 @@ use super::linearization::{Layout, Linearization, initial_slack};
 use super::problem::Problem;
 
 /// CSVTO settings (spec §1.6).
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
 pub struct CsvtoSettings {
     /// Weight `α_J` of the Stein (cost and repulsion) direction.
     pub alpha_j: f64,

@@ -6,7 +6,9 @@ use std::path::Path;
 use dips_kernel::rng::KernelRng;
 use serde::Serialize;
 
-use super::mode_run::{ExecError, ModeRun, hand_state, pose_valid, run_mode};
+use super::mode_run::{
+    ExecError, ModeRun, StepParticles, hand_state, pose_valid, run_mode_observed,
+};
 use super::settings::ExecSettings;
 use crate::hand::Hand;
 use crate::kinematics::HandModel;
@@ -47,6 +49,13 @@ pub fn sample_prior_sequence(task: SceneKind, rng: &mut KernelRng) -> Vec<Mode> 
                 .collect()
         }
     }
+}
+
+/// The prior sequence of episode `seed`: [`sample_prior_sequence`] with its own stream of the
+/// seed, so that `dips episode --seed S` and demo `S` of `dips datagen` execute the same modes.
+pub fn prior_sequence_for_seed(task: SceneKind, seed: u64) -> Vec<Mode> {
+    let mut rng = KernelRng::seed_from_u64(seed ^ 0x5eed_c0de);
+    sample_prior_sequence(task, &mut rng)
 }
 
 /// `result.json` of one episode.
@@ -110,6 +119,28 @@ pub fn run_episode_on<H: Hand + ?Sized>(
     settings: &ExecSettings,
     progress: &mut dyn FnMut(&str),
 ) -> Result<EpisodeResult, ExecError> {
+    run_episode_observed(
+        hand,
+        method,
+        seed,
+        modes,
+        settings,
+        progress,
+        &mut |_, _| {},
+    )
+}
+
+/// [`run_episode_on`] with an observer that sees every online step's solved particles, with
+/// the index of the mode in `modes` (datasets record them).
+pub fn run_episode_observed<H: Hand + ?Sized>(
+    hand: &mut H,
+    method: &str,
+    seed: u64,
+    modes: &[Mode],
+    settings: &ExecSettings,
+    progress: &mut dyn FnMut(&str),
+    observe: &mut dyn FnMut(usize, StepParticles<'_>),
+) -> Result<EpisodeResult, ExecError> {
     let task = hand.scene();
     let model = HandModel::allegro_v4();
     let mut rng = KernelRng::seed_from_u64(seed);
@@ -119,7 +150,16 @@ pub fn run_episode_on<H: Hand + ?Sized>(
     let mut step_s = Vec::new();
     for (i, &mode) in modes.iter().enumerate() {
         progress(&format!("mode {}/{}: {}", i + 1, modes.len(), mode.name()));
-        let run = run_mode(hand, &model, mode, settings, None, &mut rng, progress)?;
+        let run = run_mode_observed(
+            hand,
+            &model,
+            mode,
+            settings,
+            None,
+            &mut rng,
+            progress,
+            &mut |step| observe(i, step),
+        )?;
         valid &= run.steps.iter().all(|s| s.valid);
         step_s.extend(run.solve_times());
         runs.push(run);

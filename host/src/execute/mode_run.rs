@@ -183,6 +183,43 @@ pub fn run_mode<H: Hand + ?Sized>(
     rng: &mut KernelRng,
     progress: &mut dyn FnMut(&str),
 ) -> Result<ModeRun, ExecError> {
+    run_mode_observed(
+        hand,
+        model,
+        mode,
+        settings,
+        initial,
+        rng,
+        progress,
+        &mut |_| {},
+    )
+}
+
+/// The particles of one online step, handed to the observer of [`run_mode_observed`] after
+/// the step's solve and before its command is executed.
+#[derive(Debug)]
+pub struct StepParticles<'a> {
+    /// The step within the mode (0 = the warm-up solve).
+    pub step: usize,
+    /// The step's problem: horizon `H − step`, starting at the measured state.
+    pub problem: &'a AllegroProblem,
+    /// Every particle in the problem's layout, best first (the best one is executed).
+    pub particles: &'a [Vec<f64>],
+}
+
+/// [`run_mode`] with an observer that sees every step's solved particles (datasets record
+/// them).
+#[allow(clippy::too_many_arguments)]
+pub fn run_mode_observed<H: Hand + ?Sized>(
+    hand: &mut H,
+    model: &HandModel,
+    mode: Mode,
+    settings: &ExecSettings,
+    initial: Option<Vec<Vec<f64>>>,
+    rng: &mut KernelRng,
+    progress: &mut dyn FnMut(&str),
+    observe: &mut dyn FnMut(StepParticles<'_>),
+) -> Result<ModeRun, ExecError> {
     let task: SceneKind = hand.scene();
     let start_state = hand_state(hand);
     let goal = mode_goal(mode, &start_state);
@@ -261,6 +298,11 @@ pub fn run_mode<H: Hand + ?Sized>(
             }
         }
         let solve_s = t0.elapsed().as_secs_f64();
+        observe(StepParticles {
+            step: k,
+            problem: &problem,
+            particles: &particles,
+        });
         let best = &particles[0];
         let dq: Vec<f64> = (0..nq)
             .map(|c| best[problem.dq_col(c / 4, c % 4)])

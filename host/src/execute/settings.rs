@@ -13,7 +13,7 @@ pub const WARMUP_TOLERANCE: f64 = 0.05;
 pub const WARMUP_RETRIES: usize = 2;
 
 /// CSVTO settings for closed-loop execution of one task (spec §1.6).
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
 pub struct ExecSettings {
     /// Solver settings.
     pub csvto: CsvtoSettings,
