@@ -8,6 +8,7 @@ use dips_kernel::rng::KernelRng;
 
 use crate::execute::{ExecSettings, run_episode, sample_prior_sequence};
 use crate::problems::Mode;
+use crate::problems::mode::parse_mode;
 use crate::scenes::SceneKind;
 
 /// Arguments of `dips episode`.
@@ -62,7 +63,7 @@ pub fn run(args: EpisodeArgs) -> anyhow::Result<()> {
     let modes: Vec<Mode> = match &args.modes {
         Some(names) => names
             .iter()
-            .map(|n| Mode::from_name(task, n.trim()))
+            .map(|n| parse_mode(task, n.trim()))
             .collect::<Result<_, _>>()?,
         None => sample_prior_sequence(task, &mut rng),
     };

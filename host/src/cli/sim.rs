@@ -307,7 +307,7 @@ fn run(args: &RunArgs) -> Result<(), SimCliError> {
                         targets[f.index()][j] += row[4 * i + j];
                     }
                 }
-                match rec.command(&targets) {
+                match rec.step_world(&targets) {
                     Ok(rep) => {
                         traj.states.push(rec.inner().state());
                         traj.valid.push(rec.inner().valid());

@@ -187,7 +187,7 @@ fn open_loop_turn_solve_is_feasible_and_turns() {
     let p = AllegroProblem::new(&hand, &s).expect("valid spec");
     let mut rng = KernelRng::seed_from_u64(3);
     let mut parts = default_particles(&p, Mode::Turn, 8, &mut rng);
-    let rep = solve(&p, &mut parts, 100, &CsvtoSettings::default());
+    let rep = solve(&p, &mut parts, 100, &CsvtoSettings::default()).unwrap();
     let n = p.row_dim();
     let yaw_end = parts[0][11 * n + 14];
     assert!(rep.max_eq_violation[0] < 5e-3, "{rep:?}");
