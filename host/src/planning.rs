@@ -74,8 +74,12 @@ fn load_model(kind: EngineKind, dir: &Path, role: Role, task: Task) -> anyhow::R
 /// A planning session over loaded models: planner (capacities `K, N, O, S`, by default the
 /// [`PaperPlanner`]'s) and adapter work area, kept across calls.
 #[derive(Debug)]
-pub struct Session<const K: usize = 16, const N: usize = 512, const O: usize = 256, const S: usize = 481>
-{
+pub struct Session<
+    const K: usize = 16,
+    const N: usize = 512,
+    const O: usize = 256,
+    const S: usize = 481,
+> {
     models: Models,
     planner: Box<Planner<K, N, O, S>>,
     work: Vec<f32>,
@@ -86,8 +90,7 @@ pub type PaperSession = Session<16, 512, 256, 481>;
 
 const _: () = assert!(
     std::mem::size_of::<PaperSession>() > 0
-        && std::mem::size_of::<Planner<16, 512, 256, 481>>()
-            == std::mem::size_of::<PaperPlanner>()
+        && std::mem::size_of::<Planner<16, 512, 256, 481>>() == std::mem::size_of::<PaperPlanner>()
 );
 
 impl<const K: usize, const N: usize, const O: usize, const S: usize> Session<K, N, O, S> {

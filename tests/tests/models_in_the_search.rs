@@ -8,6 +8,7 @@
 
 use std::path::PathBuf;
 
+use dips_host::planning::{Models, Session};
 use dips_kernel::adapters::{
     DiffusionSegmentSampler, DimField, DimsMismatch, DiscriminatorScorer, SamplerAdapterLayout,
     ScorerAdapterLayout,
@@ -17,7 +18,6 @@ use dips_kernel::diffusion::SamplerConfig;
 use dips_kernel::engine::DenoiserEngine;
 use dips_kernel::mode::Task;
 use dips_kernel::prior::MarkovPrior;
-use dips_host::planning::{Models, Session};
 use dips_kernel::search::{ApproximateReason, Planner, SearchConfig, SearchReport, SearchStatus};
 use dips_kernel::session::plan_with_adapters;
 use dips_kernel::wire_convert::{PlanInputs, plan_request};

@@ -10,9 +10,7 @@ use clap::{Args, Subcommand};
 use dips_kernel::mode::{ContactMode, SegmentDims, Task};
 use dips_kernel::prior::MarkovPrior;
 use dips_kernel::rng::KernelRng;
-use dips_kernel::search::{
-    PaperPlanner, SearchConfig, SearchStats, SegmentSampler, SegmentScorer,
-};
+use dips_kernel::search::{PaperPlanner, SearchConfig, SearchStats, SegmentSampler, SegmentScorer};
 use dips_kernel::session::{PlanSpec, plan_with_adapters};
 use dips_kernel::task::{CardObjective, Objective, ScrewdriverObjective};
 

@@ -227,7 +227,10 @@ mod tests {
             }
         );
         // Flags change only what they name.
-        let c = search_config(Task::Card, &args(&["--k", "4", "--depth", "3", "--seed", "9"]));
+        let c = search_config(
+            Task::Card,
+            &args(&["--k", "4", "--depth", "3", "--seed", "9"]),
+        );
         let c = c.unwrap();
         assert_eq!((c.k, c.max_depth, c.seed), (4, 3, 9));
         assert_eq!((c.alpha, c.beta), (1e5, 0.0));

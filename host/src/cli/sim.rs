@@ -284,8 +284,7 @@ fn run(args: &RunArgs) -> Result<(), SimCliError> {
     let (traj, failure) = match &args.log {
         None => run_commands(&mut world, &dq),
         Some(log) => {
-            // Route every action through the Hand trait so the log can be replayed.
-            use crate::hand::Hand;
+            // Route every action through the recorder so the log can be replayed.
             let params = world.params().clone();
             let mut rec =
                 Recorder::create(world, log, Some(params)).map_err(anyhow::Error::from)?;

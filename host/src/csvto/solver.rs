@@ -49,7 +49,9 @@ impl Default for CsvtoSettings {
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum CsvtoError {
     /// A setting is out of range (named).
-    #[error("CSVTO setting `{0}` is out of range (must be finite and positive, or ≥ 0 for weights)")]
+    #[error(
+        "CSVTO setting `{0}` is out of range (must be finite and positive, or ≥ 0 for weights)"
+    )]
     Setting(&'static str),
     /// A count is zero.
     #[error("CSVTO count `{0}` must be at least 1")]
@@ -244,7 +246,7 @@ pub fn solve(
                 problem.clamp(x);
             });
     }
-    finish(problem, &layout, particles, &slacks, settings)
+    Ok(finish(problem, &layout, particles, &slacks, settings))
 }
 
 /// Score every particle and sort them by penalty, best first.
@@ -284,11 +286,11 @@ fn finish(
     order.sort_by(|&a, &b| pen(a).total_cmp(&pen(b)));
     let sorted: Vec<Vec<f64>> = order.iter().map(|&i| particles[i].clone()).collect();
     *particles = sorted;
-    Ok(SolveReport {
+    SolveReport {
         costs: order.iter().map(|&i| scored[i].0).collect(),
         violations: order.iter().map(|&i| scored[i].1).collect(),
         max_ineq_violation: order.iter().map(|&i| scored[i].2).collect(),
         max_eq_violation: order.iter().map(|&i| scored[i].3).collect(),
         penalties: order.iter().map(|&i| pen(i)).collect(),
-    })
+    }
 }

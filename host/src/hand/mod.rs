@@ -260,7 +260,11 @@ impl Recorder<World> {
 
 impl<H: Hand> Recorder<H> {
     /// Append the step just taken to the log.
-    fn log_step(&mut self, targets: &HandJoints, report: Option<StepReport>) -> Result<(), HandError> {
+    fn log_step(
+        &mut self,
+        targets: &HandJoints,
+        report: Option<StepReport>,
+    ) -> Result<(), HandError> {
         let step = LogStep {
             step: self.steps,
             targets: *targets,

@@ -33,9 +33,9 @@ use super::fk::FingerChain;
 use super::mode::Mode;
 use super::sdf;
 use crate::csvto::{Problem, StepConstraints};
-use dips_kernel::task::CostWeights;
 use crate::kinematics::HandModel;
 use crate::scenes::{self, SceneKind};
+use dips_kernel::task::CostWeights;
 
 /// Regrasp clearance δ (m). A regrasping finger keeps it at every step before the last, to
 /// the object both at the end of the step (`sdf(q_{t+1}, o_{t+1})`, the spec's row) and at its

@@ -164,7 +164,7 @@ mod tests {
     use dips_kernel::rng::KernelRng;
 
     fn problem(mode: Mode, yaw: f64) -> AllegroProblem {
-        let task = mode.task();
+        let task = SceneKind::from(mode.task());
         let q = task.default_joints();
         let mut start = Vec::new();
         for f in task.task_fingers() {
@@ -199,7 +199,7 @@ mod tests {
                 x[t * n + nq + 2] += 0.03 * (t as f64 + 1.0);
             }
             let c = to_contract(&p, &x);
-            let (dsc, duc) = contract_dims(mode.task());
+            let (dsc, duc) = contract_dims(mode.task().into());
             assert_eq!(c.len(), 6 * (dsc + duc));
             // Last row's action is zero; regrasping fingers' force columns are zero.
             assert!(c[5 * (dsc + duc) + dsc..].iter().all(|&v| v == 0.0));

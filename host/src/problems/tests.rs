@@ -21,7 +21,7 @@ fn start_state(task: SceneKind) -> Vec<f64> {
 }
 
 fn spec(mode: Mode, horizon: usize) -> ProblemSpec {
-    let task = mode.task();
+    let task = SceneKind::from(mode.task());
     ProblemSpec {
         task,
         mode,
@@ -246,7 +246,7 @@ fn planner_geometry_matches_the_world_at_moved_object_poses() {
     let mut rng = KernelRng::seed_from_u64(11);
     for (mode, o) in cases {
         let p = AllegroProblem::new(&hand, &spec(mode, 2)).expect("valid spec");
-        let task = mode.task();
+        let task = SceneKind::from(mode.task());
         let mut world = World::new(task);
         for trial in 0..5 {
             let mut state = start_state(task);
