@@ -19,7 +19,7 @@ use dips_kernel::engine::DenoiserEngine;
 use dips_kernel::mode::Task;
 use dips_kernel::prior::MarkovPrior;
 use dips_kernel::search::{ApproximateReason, Planner, SearchConfig, SearchReport, SearchStatus};
-use dips_kernel::session::plan_with_adapters;
+use dips_kernel::session::{PlanSpec, plan_with_adapters};
 use dips_kernel::wire_convert::{PlanInputs, plan_request};
 use dips_onnx::{AnyEngine, EngineKind, Expectation, Role};
 use dips_wire::{PlanReply, PlanRequest, PlanStatus, SearchSettings};
