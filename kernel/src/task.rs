@@ -152,8 +152,8 @@ impl GoalScalar for f64 {
 /// `(0, 0, yaw₀ − π/6)`, other screwdriver modes `(0, 0, yaw₀)`; card with a finger in contact
 /// `(0, y₀ − 0.02, 0)`, card without `o0` (the card stays).
 ///
-/// The card's pushes aim at `x = 0, θ = 0` as the authors' code does (spec §2.4 [V]); the
-/// host's CSVTO has always done so, and the search's `J` estimates the cost CSVTO will pay.
+/// The card's pushes aim at `x = 0, θ = 0` as the authors' code does (spec §2.4, verified in
+/// their code); the host's CSVTO has always done so, and the search's `J` estimates the cost CSVTO will pay.
 pub fn contact_goal<R: GoalScalar>(task: Task, mode: ContactMode, o0: [R; 3]) -> [R; 3] {
     let z = R::ZERO;
     match task {
