@@ -153,7 +153,8 @@ impl GoalScalar for f64 {
 /// `(0, y₀ − 0.02, 0)`, card without `o0` (the card stays).
 ///
 /// The card's pushes aim at `x = 0, θ = 0` as the authors' code does (spec §2.4, verified in
-/// their code); the host's CSVTO has always done so, and the search's `J` estimates the cost CSVTO will pay.
+/// their code); the host's CSVTO has always done so, and the search's `J` estimates the cost
+/// CSVTO will pay.
 pub fn contact_goal<R: GoalScalar>(task: Task, mode: ContactMode, o0: [R; 3]) -> [R; 3] {
     let z = R::ZERO;
     match task {
