@@ -1,5 +1,6 @@
-//! Planning inside the firmware: the uploaded blobs run by the kernel's interpreter, wrapped
-//! in the search's sampler and scorer adapters, and one `plan_request` call per request.
+//! Planning inside the firmware: the uploaded blobs run by the kernel's interpreter and
+//! planned through the kernel's session builder (engines → adapters → planner,
+//! [`dips_kernel::session::plan_with_engines`]), one call per request.
 //!
 //! Memory comes from the caller once ([`PlanMemory`]): the planner and one `f32` work area.
 //! Every request splits the work area into the two engines' memory (weights, op scratch,
@@ -14,9 +15,6 @@
 
 use std::time::Instant;
 
-use dips_kernel::adapters::{
-    DiffusionSegmentSampler, DiscriminatorScorer, SamplerAdapterLayout, ScorerAdapterLayout,
-};
 use dips_kernel::budget::Clock;
 use dips_kernel::diffusion::SamplerConfig;
 use dips_kernel::nn::NnError;
@@ -24,7 +22,8 @@ use dips_kernel::nn::engine::KernelEngine;
 use dips_kernel::nn::model::{ModelInfo, parse};
 use dips_kernel::prior::MarkovPrior;
 use dips_kernel::search::PaperPlanner;
-use dips_kernel::wire_convert::{PlanInputs, plan_request};
+use dips_kernel::session::{SessionError, SessionLayout, plan_with_engines};
+use dips_kernel::wire_convert::PlanInputs;
 use dips_wire::{ModelFault, ModelRole, PlanReply, PlanRequest, RequestField, WireError};
 
 /// The prior and sampler a plan uses.
@@ -106,13 +105,12 @@ fn model_info(role: ModelRole, blob: &[u8]) -> Result<ModelInfo, WireError> {
 struct Split {
     denoiser: usize,
     discriminator: usize,
-    sampler: SamplerAdapterLayout,
-    scorer: ScorerAdapterLayout,
+    session: SessionLayout,
 }
 
 impl Split {
     fn total(&self) -> usize {
-        self.denoiser + self.discriminator + self.sampler.total() + self.scorer.total()
+        self.denoiser + self.discriminator + self.session.total()
     }
 }
 
@@ -129,8 +127,7 @@ fn split_for(
             // Classifier-free guidance evaluates every segment twice per engine call.
             denoiser: den.memory_len(2 * chunk)?,
             discriminator: disc.memory_len(chunk)?,
-            sampler: SamplerAdapterLayout::new(den.dims, segments, chunk),
-            scorer: ScorerAdapterLayout::new(disc.dims, chunk),
+            session: SessionLayout::new(den.dims, segments, chunk),
         })
     };
     let mut chunk = segments.max(1);
@@ -206,27 +203,28 @@ pub fn plan(
             field: RequestField::Prior,
         });
     }
-    let segments = inputs.task.mode_count() * usize::from(inputs.config.k);
+    let spec = inputs.into_spec(prior, config.sampler);
+    let segments = spec.segments_per_call();
     let split = split_for(&den, &disc, segments, memory.work.len())?;
     let (den_mem, rest) = memory.work.split_at_mut(split.denoiser);
     let (disc_mem, rest) = rest.split_at_mut(split.discriminator);
-    let (sampler_buf, rest) = rest.split_at_mut(split.sampler.total());
-    let scorer_buf = &mut rest[..split.scorer.total()];
+    let session_mem = &mut rest[..split.session.total()];
     let den_engine =
         KernelEngine::new(denoiser, den_mem).map_err(|e| engine_fault(ModelRole::Denoiser, e))?;
     let disc_engine = KernelEngine::new(discriminator, disc_mem)
         .map_err(|e| engine_fault(ModelRole::Discriminator, e))?;
-    let mut sampler =
-        DiffusionSegmentSampler::new(den_engine, config.sampler, sampler_buf, &split.sampler)
-            .map_err(|_| rejected(ModelRole::Denoiser, ModelFault::WrongShape))?;
-    let mut scorer = DiscriminatorScorer::new(disc_engine, scorer_buf, &split.scorer)
-        .map_err(|_| rejected(ModelRole::Discriminator, ModelFault::WrongShape))?;
-    plan_request(
+    let report = plan_with_engines(
         memory.planner,
-        request,
-        &prior,
-        &mut sampler,
-        &mut scorer,
+        &spec,
+        den_engine,
+        disc_engine,
+        &split.session,
+        session_mem,
         clock,
     )
+    .map_err(|e| match e {
+        SessionError::Sampler(_) => rejected(ModelRole::Denoiser, ModelFault::WrongShape),
+        SessionError::Scorer(_) => rejected(ModelRole::Discriminator, ModelFault::WrongShape),
+    })?;
+    Ok(PlanReply::from(&report))
 }

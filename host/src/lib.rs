@@ -7,6 +7,7 @@ pub mod execute;
 pub mod geometry;
 pub mod hand;
 pub mod kinematics;
+pub mod planning;
 pub mod problems;
 pub mod render;
 pub mod scenes;

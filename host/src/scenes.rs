@@ -5,12 +5,17 @@ use nalgebra::{
     Isometry3, Matrix3, Point3, Quaternion, Rotation3, Translation3, UnitQuaternion, Vector3,
 };
 
+use dips_kernel::mode::{Task, TaskMode};
+
 use crate::kinematics::{Finger, HandJoints};
 
 /// Standard gravity (m/s²), acting along world −z.
 pub const GRAVITY: f64 = 9.81;
 
-/// Which task scene.
+/// Which task scene: the world-side view of the kernel's [`Task`] (one scene per task, the
+/// same names; `From` converts both ways). The task's modes, sizes, layout and costs are the
+/// kernel's; this adds what only the world and the host know (hand placement, geometry,
+/// stiffness, friction).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub enum SceneKind {
     /// Screwdriver turning with thumb, index and middle.
@@ -19,21 +24,58 @@ pub enum SceneKind {
     Card,
 }
 
+impl From<Task> for SceneKind {
+    fn from(task: Task) -> Self {
+        match task {
+            Task::Screwdriver => SceneKind::Screwdriver,
+            Task::Card => SceneKind::Card,
+        }
+    }
+}
+
+impl From<SceneKind> for Task {
+    fn from(scene: SceneKind) -> Self {
+        scene.task()
+    }
+}
+
+impl PartialEq<Task> for SceneKind {
+    fn eq(&self, task: &Task) -> bool {
+        self.task() == *task
+    }
+}
+
+impl PartialEq<SceneKind> for Task {
+    fn eq(&self, scene: &SceneKind) -> bool {
+        *self == scene.task()
+    }
+}
+
 impl SceneKind {
-    /// Both scenes.
+    /// Both scenes, in the kernel's task order.
     pub const ALL: [SceneKind; 2] = [SceneKind::Screwdriver, SceneKind::Card];
 
-    /// Name used on the command line and in files.
-    pub fn name(self) -> &'static str {
+    /// The kernel task of this scene.
+    pub const fn task(self) -> Task {
         match self {
-            SceneKind::Screwdriver => "screwdriver",
-            SceneKind::Card => "card",
+            SceneKind::Screwdriver => Task::Screwdriver,
+            SceneKind::Card => Task::Card,
         }
+    }
+
+    /// Name used on the command line and in files (the task's name).
+    pub fn name(self) -> &'static str {
+        self.task().name()
     }
 
     /// Parse a scene name.
     pub fn from_name(name: &str) -> Option<SceneKind> {
-        SceneKind::ALL.into_iter().find(|s| s.name() == name)
+        Task::from_name(name).ok().map(SceneKind::from)
+    }
+
+    /// The task's modes, in the kernel's table order.
+    pub fn modes(self) -> &'static [TaskMode] {
+        self.task().named_modes()
     }
 
     /// The task's fingers in `CONTRACTS.md` §2 order.

@@ -109,3 +109,16 @@ fn bad_models_and_flags_are_clear_errors() {
     let err = plan(&["--task", "pen", "--models", &card]).unwrap_err();
     assert!(err.contains("unknown task"), "{err}");
 }
+
+#[test]
+fn each_task_plans_with_its_own_search_settings() {
+    let settings = |task, dir| small(task, dir, "1", "kernel")["settings"].clone();
+    let sd = settings("screwdriver", "torch-screwdriver-legacy");
+    assert_eq!(sd["alpha"].as_f64(), Some(1e4));
+    assert_eq!(sd["beta"].as_f64(), Some(1e3));
+    assert_eq!(sd["max_depth"].as_u64(), Some(7));
+    let card = settings("card", "torch-card-dynamo");
+    assert_eq!(card["alpha"].as_f64(), Some(1e5));
+    assert_eq!(card["beta"].as_f64(), Some(0.0));
+    assert_eq!(card["max_depth"].as_u64(), Some(5));
+}

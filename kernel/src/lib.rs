@@ -22,5 +22,6 @@ pub mod nn;
 pub mod prior;
 pub mod rng;
 pub mod search;
+pub mod session;
 pub mod task;
 pub mod wire_convert;

@@ -104,29 +104,260 @@ pub struct ModeSpec {
     pub name: &'static str,
     /// Its contact vector.
     pub mode: ContactMode,
+    /// The typed name of the mode.
+    pub named: TaskMode,
 }
 
-const fn spec(name: &'static str, contact: u8, fingers: u8) -> ModeSpec {
+const fn spec(named: TaskMode, name: &'static str, contact: u8, fingers: u8) -> ModeSpec {
     ModeSpec {
         name,
         mode: ContactMode { contact, fingers },
+        named,
     }
 }
 
-/// Screwdriver modes, fingers (index, middle, thumb) at bits 0, 1, 2.
+/// Screwdriver modes, fingers (index, middle, thumb) at bits 0, 1, 2. The table is the one
+/// definition of the modes: names, contact vectors and order ([`ModeId`] indexes it).
 const SCREWDRIVER_MODES: [ModeSpec; 3] = [
-    spec("turn", 0b111, 3),
-    spec("index-regrasp", 0b110, 3),
-    spec("thumb-middle-regrasp", 0b001, 3),
+    spec(TaskMode::Turn, "turn", 0b111, 3),
+    spec(TaskMode::IndexRegrasp, "index-regrasp", 0b110, 3),
+    spec(
+        TaskMode::ThumbMiddleRegrasp,
+        "thumb-middle-regrasp",
+        0b001,
+        3,
+    ),
 ];
 
 /// Card modes, fingers (index, middle) at bits 0, 1.
 const CARD_MODES: [ModeSpec; 4] = [
-    spec("index", 0b01, 2),
-    spec("middle", 0b10, 2),
-    spec("both", 0b11, 2),
-    spec("regrasp", 0b00, 2),
+    spec(TaskMode::CardIndex, "index", 0b01, 2),
+    spec(TaskMode::CardMiddle, "middle", 0b10, 2),
+    spec(TaskMode::CardBoth, "both", 0b11, 2),
+    spec(TaskMode::CardRegrasp, "regrasp", 0b00, 2),
 ];
+
+/// Every named mode of both tasks, as a type (the host's CSVTO problems match on it). Its
+/// facts come from the task's mode table ([`Task::modes`]): [`TaskMode::id`] is the only
+/// mapping, and `names_round_trip` checks it.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum TaskMode {
+    /// Screwdriver, all three fingers turn it `(+1,+1,+1)`.
+    Turn,
+    /// Screwdriver, thumb and middle hold, index regrasps `(−1,+1,+1)`.
+    IndexRegrasp,
+    /// Screwdriver, index holds the cap, thumb and middle regrasp `(+1,−1,−1)`.
+    ThumbMiddleRegrasp,
+    /// Card, index pushes, middle regrasps `(+1,−1)`.
+    CardIndex,
+    /// Card, middle pushes, index regrasps `(−1,+1)`.
+    CardMiddle,
+    /// Card, both push `(+1,+1)`.
+    CardBoth,
+    /// Card, both regrasp `(−1,−1)`.
+    CardRegrasp,
+}
+
+impl TaskMode {
+    /// The task the mode belongs to.
+    pub const fn task(self) -> Task {
+        match self {
+            TaskMode::Turn | TaskMode::IndexRegrasp | TaskMode::ThumbMiddleRegrasp => {
+                Task::Screwdriver
+            }
+            _ => Task::Card,
+        }
+    }
+
+    /// Its index in the task's mode table.
+    pub const fn id(self) -> ModeId {
+        ModeId(match self {
+            TaskMode::Turn | TaskMode::CardIndex => 0,
+            TaskMode::IndexRegrasp | TaskMode::CardMiddle => 1,
+            TaskMode::ThumbMiddleRegrasp | TaskMode::CardBoth => 2,
+            TaskMode::CardRegrasp => 3,
+        })
+    }
+
+    /// The mode's table entry.
+    pub const fn spec(self) -> &'static ModeSpec {
+        &self.task().modes()[self.id().index()]
+    }
+
+    /// The `CONTRACTS.md` §2 name.
+    pub const fn name(self) -> &'static str {
+        self.spec().name
+    }
+
+    /// The contact vector.
+    pub const fn contact_mode(self) -> ContactMode {
+        self.spec().mode
+    }
+
+    /// Whether task finger `i` is in contact.
+    pub const fn in_contact(self, i: usize) -> bool {
+        self.contact_mode().in_contact(i)
+    }
+
+    /// Whether the mode moves the object toward the task goal (turn, the card's pushes):
+    /// the mode's object goal ([`crate::task::mode_goal`]) moves it.
+    pub const fn moves_object(self) -> bool {
+        matches!(
+            self,
+            TaskMode::Turn | TaskMode::CardIndex | TaskMode::CardMiddle | TaskMode::CardBoth
+        )
+    }
+
+    /// The mode of `task` with table index `id`.
+    pub fn from_id(task: Task, id: ModeId) -> Option<Self> {
+        task.modes().get(id.index()).map(|s| s.named)
+    }
+
+    /// The mode of `task` named `name`.
+    pub fn from_name(task: Task, name: &str) -> Result<Self, UnknownName> {
+        Self::from_id(task, task.mode_by_name(name)?).ok_or(UnknownName)
+    }
+}
+
+/// `CONTRACTS.md` §2 column names (exactly these strings).
+const SCREWDRIVER_STATE_COLUMNS: [&str; 16] = [
+    "q_index_0",
+    "q_index_1",
+    "q_index_2",
+    "q_index_3",
+    "q_middle_0",
+    "q_middle_1",
+    "q_middle_2",
+    "q_middle_3",
+    "q_thumb_0",
+    "q_thumb_1",
+    "q_thumb_2",
+    "q_thumb_3",
+    "roll",
+    "pitch",
+    "cos_yaw",
+    "sin_yaw",
+];
+const SCREWDRIVER_ACTION_COLUMNS: [&str; 21] = [
+    "dq_index_0",
+    "dq_index_1",
+    "dq_index_2",
+    "dq_index_3",
+    "dq_middle_0",
+    "dq_middle_1",
+    "dq_middle_2",
+    "dq_middle_3",
+    "dq_thumb_0",
+    "dq_thumb_1",
+    "dq_thumb_2",
+    "dq_thumb_3",
+    "f_index_x",
+    "f_index_y",
+    "f_index_z",
+    "f_middle_x",
+    "f_middle_y",
+    "f_middle_z",
+    "f_thumb_x",
+    "f_thumb_y",
+    "f_thumb_z",
+];
+const CARD_STATE_COLUMNS: [&str; 12] = [
+    "q_index_0",
+    "q_index_1",
+    "q_index_2",
+    "q_index_3",
+    "q_middle_0",
+    "q_middle_1",
+    "q_middle_2",
+    "q_middle_3",
+    "x",
+    "y",
+    "cos_theta",
+    "sin_theta",
+];
+const CARD_ACTION_COLUMNS: [&str; 17] = [
+    "dq_index_0",
+    "dq_index_1",
+    "dq_index_2",
+    "dq_index_3",
+    "dq_middle_0",
+    "dq_middle_1",
+    "dq_middle_2",
+    "dq_middle_3",
+    "f_index_x",
+    "f_index_y",
+    "f_index_z",
+    "f_middle_x",
+    "f_middle_y",
+    "f_middle_z",
+    "f_env_x",
+    "f_env_y",
+    "f_env_z",
+];
+
+/// Where things are in a task's `CONTRACTS.md` §2 row `[s_t, u_t]`: finger joints, the object
+/// pose (two plain coordinates, then the `(cos, sin)` of its angle), the joint deltas, one
+/// force triple per finger and, for the card, the table force. The one definition of the
+/// trajectory layout; sizes follow from the finger count.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct RowLayout {
+    /// Task fingers (4 joints and one force triple each).
+    pub fingers: usize,
+    /// Whether the action ends with an environment (table) force triple.
+    pub env_force: bool,
+}
+
+impl RowLayout {
+    /// Joint columns `q` (`4·fingers`), from column 0.
+    pub const fn joints(&self) -> usize {
+        4 * self.fingers
+    }
+
+    /// First object column (roll/x); the object has [`Self::OBJECT_COLUMNS`] columns.
+    pub const fn object(&self) -> usize {
+        self.joints()
+    }
+
+    /// Object columns in the row: two plain coordinates, `cos` and `sin` of the angle.
+    pub const OBJECT_COLUMNS: usize = 4;
+
+    /// Column of the angle's `cos` (`sin` follows).
+    pub const fn angle_cos(&self) -> usize {
+        self.object() + 2
+    }
+
+    /// State columns.
+    pub const fn state_dim(&self) -> usize {
+        self.joints() + Self::OBJECT_COLUMNS
+    }
+
+    /// First action column (`Δq`, then the forces).
+    pub const fn action(&self) -> usize {
+        self.state_dim()
+    }
+
+    /// Action columns: `Δq`, a force triple per finger, the environment force.
+    pub const fn action_dim(&self) -> usize {
+        self.joints() + 3 * self.fingers + if self.env_force { 3 } else { 0 }
+    }
+
+    /// Column of `Δq` of finger `i`, joint `k`.
+    pub const fn dq_col(&self, i: usize, k: usize) -> usize {
+        self.action() + 4 * i + k
+    }
+
+    /// First column of finger `i`'s force triple; `i == fingers` is the environment force.
+    pub const fn force_col(&self, i: usize) -> usize {
+        self.action() + self.joints() + 3 * i
+    }
+
+    /// Object pose `(a, b, angle)` of a row: `(roll, pitch, yaw)` or `(x, y, θ)`, the angle
+    /// from `atan2(sin, cos)`. `None` when the row is too short.
+    pub fn pose(&self, row: &[f32]) -> Option<[f32; 3]> {
+        let o = row.get(self.object()..self.object() + Self::OBJECT_COLUMNS)?;
+        Some([o[0], o[1], libm::atan2f(o[3], o[2])])
+    }
+}
 
 /// Sizes of one trajectory segment (`CONTRACTS.md` §2), run-time values.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -210,6 +441,23 @@ impl Task {
         }
     }
 
+    /// The task's modes as [`TaskMode`]s, in table order.
+    pub const fn named_modes(self) -> &'static [TaskMode] {
+        match self {
+            Task::Screwdriver => &[
+                TaskMode::Turn,
+                TaskMode::IndexRegrasp,
+                TaskMode::ThumbMiddleRegrasp,
+            ],
+            Task::Card => &[
+                TaskMode::CardIndex,
+                TaskMode::CardMiddle,
+                TaskMode::CardBoth,
+                TaskMode::CardRegrasp,
+            ],
+        }
+    }
+
     /// Number of modes in the table.
     pub const fn mode_count(self) -> usize {
         self.modes().len()
@@ -248,21 +496,52 @@ impl Task {
             .map(|i| ModeId(i as u8))
     }
 
+    /// The row layout of `CONTRACTS.md` §2.
+    pub const fn layout(self) -> RowLayout {
+        match self {
+            Task::Screwdriver => RowLayout {
+                fingers: 3,
+                env_force: false,
+            },
+            Task::Card => RowLayout {
+                fingers: 2,
+                env_force: true,
+            },
+        }
+    }
+
+    /// Planning steps per mode segment `H` (the segment has `H + 1` rows).
+    pub const fn steps_per_mode(self) -> usize {
+        match self {
+            Task::Screwdriver => 12,
+            Task::Card => 8,
+        }
+    }
+
     /// The segment sizes of `CONTRACTS.md` §2.
     pub const fn dims(self) -> SegmentDims {
+        let l = self.layout();
+        SegmentDims {
+            horizon: self.steps_per_mode() + 1,
+            state_dim: l.state_dim(),
+            action_dim: l.action_dim(),
+            fingers: l.fingers,
+        }
+    }
+
+    /// The state column names of `CONTRACTS.md` §2.
+    pub const fn state_columns(self) -> &'static [&'static str] {
         match self {
-            Task::Screwdriver => SegmentDims {
-                horizon: 13,
-                state_dim: 16,
-                action_dim: 21,
-                fingers: 3,
-            },
-            Task::Card => SegmentDims {
-                horizon: 9,
-                state_dim: 12,
-                action_dim: 17,
-                fingers: 2,
-            },
+            Task::Screwdriver => &SCREWDRIVER_STATE_COLUMNS,
+            Task::Card => &CARD_STATE_COLUMNS,
+        }
+    }
+
+    /// The action column names of `CONTRACTS.md` §2.
+    pub const fn action_columns(self) -> &'static [&'static str] {
+        match self {
+            Task::Screwdriver => &SCREWDRIVER_ACTION_COLUMNS,
+            Task::Card => &CARD_ACTION_COLUMNS,
         }
     }
 }
@@ -281,13 +560,49 @@ mod tests {
                 assert_eq!(task.mode_name(id), Some(m.name));
                 assert_eq!(task.mode_by_contact(m.mode), Some(id));
                 assert_eq!(m.mode.fingers(), task.finger_names().len());
+                let named = task.named_modes()[i];
+                assert_eq!(named, m.named);
+                assert_eq!((named.task(), named.id(), named.name()), (task, id, m.name));
+                assert_eq!(TaskMode::from_name(task, m.name), Ok(named));
+                assert_eq!(named.contact_mode(), m.mode);
             }
+            assert_eq!(task.named_modes().len(), task.mode_count());
             assert!(task.mode_count() <= MAX_MODES);
             assert!(task.dims().state_dim <= MAX_STATE_DIM);
             assert_eq!(task.dims().fingers, task.finger_names().len());
         }
         assert_eq!(Task::from_name("valve"), Err(UnknownName));
         assert_eq!(Task::Card.mode_by_name("turn"), Err(UnknownName));
+    }
+
+    #[test]
+    fn layout_sizes_and_column_names_agree() {
+        use std::format;
+        for task in Task::ALL {
+            let (l, d) = (task.layout(), task.dims());
+            assert_eq!(task.state_columns().len(), d.state_dim);
+            assert_eq!(task.action_columns().len(), d.action_dim);
+            let fingers = task.finger_names();
+            for (i, f) in fingers.iter().enumerate() {
+                for k in 0..4 {
+                    assert_eq!(task.state_columns()[4 * i + k], format!("q_{f}_{k}"));
+                    let dq = l.dq_col(i, k) - l.action();
+                    assert_eq!(task.action_columns()[dq], format!("dq_{f}_{k}"));
+                }
+                let fc = l.force_col(i) - l.action();
+                assert_eq!(task.action_columns()[fc], format!("f_{f}_x"));
+            }
+            let angle = if task == Task::Card { "theta" } else { "yaw" };
+            assert_eq!(task.state_columns()[l.angle_cos()], format!("cos_{angle}"));
+            if l.env_force {
+                assert_eq!(
+                    task.action_columns()[l.force_col(l.fingers) - l.action()],
+                    "f_env_x"
+                );
+            }
+        }
+        assert_eq!(Task::Screwdriver.dims().horizon, 13);
+        assert_eq!(Task::Card.dims().dim(), 29);
     }
 
     #[test]

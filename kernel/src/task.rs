@@ -21,11 +21,14 @@
 //! the kernel. The kernel's `J` is therefore lower than the host CSVTO cost for regrasp
 //! modes by exactly that term.
 //!
-//! Goals `o*`: screwdriver turn `(0, 0, yaw_0 − π/6)`, screwdriver regrasps `(0, 0, yaw_0)`;
-//! card move modes (`index`, `middle`, `both`) `(x_0, y_0 − 0.02, θ_0)`, card `regrasp`
-//! `(x_0, y_0, θ_0)`.
+//! Goals `o*` ([`mode_goal`], spec §2.4, the same function the host's CSVTO uses): screwdriver
+//! turn `(0, 0, yaw_0 − π/6)`, screwdriver regrasps `(0, 0, yaw_0)`; card move modes (`index`,
+//! `middle`, `both`) `(0, y_0 − 0.02, 0)`, card `regrasp` `(x_0, y_0, θ_0)`.
+//!
+//! The weights are named in [`CostWeights`] (one value per task), which the host's CSVTO
+//! cost reads too.
 
-use crate::mode::{ContactMode, SegmentDims, Task};
+use crate::mode::{ContactMode, RowLayout, SegmentDims, Task, TaskMode};
 use crate::search::TaskObjective;
 use core::f32::consts::{PI, TAU};
 
@@ -49,119 +52,203 @@ pub fn wrap_angle(a: f32) -> f32 {
     libm::remainderf(a, TAU)
 }
 
-/// Column layout of a task's rows.
-#[derive(Debug, Clone, Copy)]
-struct Layout {
-    /// Finger joints `q` start at 0 and span this many columns.
-    joints: usize,
-    /// Object pose columns: the first two plain, then a cos/sin pair.
-    object: usize,
-    /// Whether the two plain object columns are roll/pitch (screwdriver) or x/y (card).
-    screwdriver: bool,
-    /// First action column (`Δq` first, then forces).
-    action: usize,
-    /// Fingers (each has 3 force columns after `Δq`).
-    fingers: usize,
+/// The weights of the per-mode cost `J` (spec §2.4), before the global [`CostWeights::scale`].
+/// One value per task ([`CostWeights::of`]); the kernel's `J` and the host's CSVTO cost both
+/// read them. Every weight is exact in `f32` and `f64`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct CostWeights {
+    /// Global factor `α_cost` on everything.
+    pub scale: f32,
+    /// Joint smoothness `Σ_{t≥1} ‖q_t − q_{t−1}‖²`.
+    pub joint_step: f32,
+    /// Joint commands `Σ_{t<H} ‖Δq_t‖²`.
+    pub joint_delta: f32,
+    /// Object steps `Σ_{t<H} ‖o_{t+1} − o_t‖²`.
+    pub object_step: f32,
+    /// Modes with a finger in contact: terminal goal `‖o_H − o*‖²`.
+    pub contact_goal_terminal: f32,
+    /// Modes with a finger in contact: running goal `Σ_{0<t<H} ‖o_t − o*‖²`.
+    pub contact_goal_running: f32,
+    /// Modes with a finger in contact: forces of the contact fingers `Σ ‖f_{i,t}‖²`.
+    pub contact_force: f32,
+    /// Every mode: terminal goal (the card's extra).
+    pub task_goal_terminal: f32,
+    /// Every mode: running goal (the card's extra).
+    pub task_goal_running: f32,
+    /// Keep upright: `Σ_{t≥1} (roll_t² + pitch_t²)` (the screwdriver's extra).
+    pub upright: f32,
+    /// Regrasp target contact `J_r` (host only: it needs the hand's forward kinematics).
+    pub regrasp_target: f32,
 }
 
-const SCREWDRIVER: Layout = Layout {
-    joints: 12,
-    object: 12,
-    screwdriver: true,
-    action: 16,
-    fingers: 3,
-};
+impl CostWeights {
+    /// The screwdriver's weights.
+    pub const SCREWDRIVER: Self = Self {
+        scale: ALPHA_COST,
+        joint_step: 10.0,
+        joint_delta: 10.0,
+        object_step: 1.0,
+        contact_goal_terminal: 10.0,
+        contact_goal_running: 3.0,
+        contact_force: 1.0,
+        task_goal_terminal: 0.0,
+        task_goal_running: 0.0,
+        upright: 500.0,
+        regrasp_target: 1000.0,
+    };
 
-const CARD: Layout = Layout {
-    joints: 8,
-    object: 8,
-    screwdriver: false,
-    action: 12,
-    fingers: 2,
-};
+    /// The card's weights.
+    pub const CARD: Self = Self {
+        task_goal_terminal: 15_000.0,
+        task_goal_running: 15_000.0,
+        upright: 0.0,
+        ..Self::SCREWDRIVER
+    };
 
-impl Layout {
-    /// Object pose `(a, b, angle)` of a row: (roll, pitch, yaw) or (x, y, θ).
-    fn pose(&self, row: &[f32]) -> [f32; 3] {
-        let o = self.object;
-        [row[o], row[o + 1], libm::atan2f(row[o + 3], row[o + 2])]
-    }
-
-    /// Squared distance between poses, the angle wrapped.
-    fn pose_dist2(a: &[f32; 3], b: &[f32; 3]) -> f32 {
-        let d0 = a[0] - b[0];
-        let d1 = a[1] - b[1];
-        let d2 = wrap_angle(a[2] - b[2]);
-        d0 * d0 + d1 * d1 + d2 * d2
-    }
-
-    fn cost(&self, task: Task, mode: ContactMode, dims: &SegmentDims, seg: &[f32]) -> f32 {
-        let d = dims.dim();
-        let rows = dims.horizon;
-        if rows == 0 || seg.len() < rows * d {
-            return f32::NAN;
+    /// The weights of `task`.
+    pub const fn of(task: Task) -> Self {
+        match task {
+            Task::Screwdriver => Self::SCREWDRIVER,
+            Task::Card => Self::CARD,
         }
-        let h = rows - 1;
-        let row = |t: usize| &seg[t * d..(t + 1) * d];
-        let o0 = self.pose(row(0));
-        let goal = match (task, mode.contact_count() > 0) {
-            (Task::Screwdriver, _) if mode.contact_count() as usize == self.fingers => {
-                [0.0, 0.0, o0[2] + SCREWDRIVER_TURN_PER_MODE]
-            }
-            (Task::Screwdriver, _) => [0.0, 0.0, o0[2]],
-            (Task::Card, true) => [o0[0], o0[1] + CARD_MOVE_PER_MODE, o0[2]],
-            (Task::Card, false) => o0,
-        };
-        let in_contact = mode.contact_count() > 0;
+    }
 
-        let mut smooth = 0.0f32;
-        let mut dq = 0.0f32;
-        let mut force = 0.0f32;
-        let mut obj_run = 0.0f32;
-        let mut obj_step = 0.0f32;
-        let mut upright = 0.0f32;
-        for t in 0..rows {
-            let r = row(t);
-            let o = self.pose(r);
-            if t >= 1 {
-                let p = row(t - 1);
-                smooth += r[..self.joints]
-                    .iter()
-                    .zip(&p[..self.joints])
-                    .map(|(a, b)| (a - b) * (a - b))
-                    .sum::<f32>();
-                if self.screwdriver {
-                    upright += o[0] * o[0] + o[1] * o[1];
-                }
-                if t < h {
-                    obj_run += Self::pose_dist2(&o, &goal);
-                }
+    /// The goal weights `(terminal, running)` of a mode with or without a finger in contact.
+    pub fn goal_weights(&self, in_contact: bool) -> (f32, f32) {
+        let (mut t, mut r) = (self.task_goal_terminal, self.task_goal_running);
+        if in_contact {
+            t += self.contact_goal_terminal;
+            r += self.contact_goal_running;
+        }
+        (t, r)
+    }
+}
+
+/// The scalars a mode goal is computed in: `f32` (the kernel) and `f64` (the host's CSVTO).
+/// Each carries the per-mode goal steps rounded from the same decimal or `π` expression.
+pub trait GoalScalar: Copy + core::ops::Add<Output = Self> {
+    /// Zero.
+    const ZERO: Self;
+    /// [`SCREWDRIVER_TURN_PER_MODE`] in this type.
+    const TURN_PER_MODE: Self;
+    /// [`CARD_MOVE_PER_MODE`] in this type.
+    const CARD_MOVE_PER_MODE: Self;
+}
+
+impl GoalScalar for f32 {
+    const ZERO: Self = 0.0;
+    const TURN_PER_MODE: Self = SCREWDRIVER_TURN_PER_MODE;
+    const CARD_MOVE_PER_MODE: Self = CARD_MOVE_PER_MODE;
+}
+
+impl GoalScalar for f64 {
+    const ZERO: Self = 0.0;
+    const TURN_PER_MODE: Self = -core::f64::consts::PI / 6.0;
+    const CARD_MOVE_PER_MODE: Self = -0.02;
+}
+
+/// The object goal `o*` of a mode with contact vector `mode` from the pose `o0` at the
+/// segment's start (spec §2.4): screwdriver with every finger in contact (turn)
+/// `(0, 0, yaw₀ − π/6)`, other screwdriver modes `(0, 0, yaw₀)`; card with a finger in contact
+/// `(0, y₀ − 0.02, 0)`, card without `o0` (the card stays).
+///
+/// The card's pushes aim at `x = 0, θ = 0` as the authors' code does (spec §2.4, verified in
+/// their code); the host's CSVTO has always done so, and the search's `J` estimates the cost
+/// CSVTO will pay.
+pub fn contact_goal<R: GoalScalar>(task: Task, mode: ContactMode, o0: [R; 3]) -> [R; 3] {
+    let z = R::ZERO;
+    match task {
+        Task::Screwdriver if mode.contact_count() as usize == mode.fingers() => {
+            [z, z, o0[2] + R::TURN_PER_MODE]
+        }
+        Task::Screwdriver => [z, z, o0[2]],
+        Task::Card if mode.contact_count() > 0 => [z, o0[1] + R::CARD_MOVE_PER_MODE, z],
+        Task::Card => o0,
+    }
+}
+
+/// The object goal of a named mode ([`contact_goal`]).
+pub fn mode_goal<R: GoalScalar>(mode: TaskMode, o0: [R; 3]) -> [R; 3] {
+    contact_goal(mode.task(), mode.contact_mode(), o0)
+}
+
+/// Squared distance between poses, the angle wrapped.
+fn pose_dist2(a: &[f32; 3], b: &[f32; 3]) -> f32 {
+    let d0 = a[0] - b[0];
+    let d1 = a[1] - b[1];
+    let d2 = wrap_angle(a[2] - b[2]);
+    d0 * d0 + d1 * d1 + d2 * d2
+}
+
+/// `J` of `mode` on a raw segment of `task` (see the module docs); NaN when the segment is
+/// shorter than `dims` says.
+pub fn segment_cost(task: Task, mode: ContactMode, dims: &SegmentDims, seg: &[f32]) -> f32 {
+    let layout: RowLayout = task.layout();
+    let w = CostWeights::of(task);
+    let d = dims.dim();
+    let rows = dims.horizon;
+    if rows == 0 || seg.len() < rows * d || d < layout.state_dim() {
+        return f32::NAN;
+    }
+    let nq = layout.joints();
+    let h = rows - 1;
+    let row = |t: usize| &seg[t * d..(t + 1) * d];
+    let pose = |r: &[f32]| layout.pose(r).unwrap_or([f32::NAN; 3]);
+    let o0 = pose(row(0));
+    let goal = contact_goal(task, mode, o0);
+    let in_contact = mode.contact_count() > 0;
+    let upright_term = w.upright != 0.0;
+
+    let mut smooth = 0.0f32;
+    let mut dq = 0.0f32;
+    let mut force = 0.0f32;
+    let mut obj_run = 0.0f32;
+    let mut obj_step = 0.0f32;
+    let mut upright = 0.0f32;
+    for t in 0..rows {
+        let r = row(t);
+        let o = pose(r);
+        if t >= 1 {
+            let p = row(t - 1);
+            smooth += r[..nq]
+                .iter()
+                .zip(&p[..nq])
+                .map(|(a, b)| (a - b) * (a - b))
+                .sum::<f32>();
+            if upright_term {
+                upright += o[0] * o[0] + o[1] * o[1];
             }
             if t < h {
-                let a = &r[self.action..];
-                dq += a[..self.joints].iter().map(|v| v * v).sum::<f32>();
-                for i in 0..self.fingers {
-                    if mode.in_contact(i) {
-                        let f = &a[self.joints + 3 * i..self.joints + 3 * i + 3];
-                        force += f.iter().map(|v| v * v).sum::<f32>();
-                    }
-                }
-                let next = self.pose(row(t + 1));
-                obj_step += Self::pose_dist2(&next, &o);
+                obj_run += pose_dist2(&o, &goal);
             }
         }
-        let terminal = Self::pose_dist2(&self.pose(row(h)), &goal);
-        let mut j = 10.0 * smooth + 10.0 * dq + obj_step;
-        if in_contact {
-            j += 10.0 * terminal + 3.0 * obj_run + force;
+        if t < h {
+            let a = &r[layout.action()..];
+            dq += a[..nq].iter().map(|v| v * v).sum::<f32>();
+            for i in 0..layout.fingers {
+                if mode.in_contact(i) {
+                    let f = &a[nq + 3 * i..nq + 3 * i + 3];
+                    force += f.iter().map(|v| v * v).sum::<f32>();
+                }
+            }
+            let next = pose(row(t + 1));
+            obj_step += pose_dist2(&next, &o);
         }
-        if self.screwdriver {
-            j += 500.0 * upright;
-        } else {
-            j += 15000.0 * terminal + 15000.0 * obj_run;
-        }
-        ALPHA_COST * j
     }
+    let terminal = pose_dist2(&pose(row(h)), &goal);
+    let mut j = w.joint_step * smooth + w.joint_delta * dq + w.object_step * obj_step;
+    if in_contact {
+        j += w.contact_goal_terminal * terminal
+            + w.contact_goal_running * obj_run
+            + w.contact_force * force;
+    }
+    if upright_term {
+        j += w.upright * upright;
+    }
+    if w.task_goal_terminal != 0.0 || w.task_goal_running != 0.0 {
+        j += w.task_goal_terminal * terminal + w.task_goal_running * obj_run;
+    }
+    w.scale * j
 }
 
 /// The screwdriver's costs: progress is the yaw, `φ(ȳaw) = max(0, ȳaw − goal)`, the goal is
@@ -190,8 +277,8 @@ impl ScrewdriverObjective {
 
     /// `atan2(sin_yaw, cos_yaw)` of a raw screwdriver state; `None` if it is too short.
     pub fn raw_yaw(state: &[f32]) -> Option<f32> {
-        let c = state.get(SCREWDRIVER.object + 2)?;
-        let s = state.get(SCREWDRIVER.object + 3)?;
+        let c = state.get(Task::Screwdriver.layout().angle_cos())?;
+        let s = state.get(Task::Screwdriver.layout().angle_cos() + 1)?;
         Some(libm::atan2f(*s, *c))
     }
 }
@@ -202,7 +289,7 @@ impl TaskObjective for ScrewdriverObjective {
     }
 
     fn segment_cost(&self, mode: ContactMode, dims: &SegmentDims, segment: &[f32]) -> f32 {
-        SCREWDRIVER.cost(Task::Screwdriver, mode, dims, segment)
+        segment_cost(Task::Screwdriver, mode, dims, segment)
     }
 
     fn progress(&self, state: &[f32]) -> f32 {
@@ -245,11 +332,14 @@ impl TaskObjective for CardObjective {
     }
 
     fn segment_cost(&self, mode: ContactMode, dims: &SegmentDims, segment: &[f32]) -> f32 {
-        CARD.cost(Task::Card, mode, dims, segment)
+        segment_cost(Task::Card, mode, dims, segment)
     }
 
     fn progress(&self, state: &[f32]) -> f32 {
-        state.get(CARD.object + 1).copied().unwrap_or(f32::NAN)
+        state
+            .get(Task::Card.layout().object() + 1)
+            .copied()
+            .unwrap_or(f32::NAN)
     }
 
     fn terminal_cost(&self, expected_progress: f32) -> f32 {
@@ -292,9 +382,19 @@ impl Objective {
                 }))
             }
             Task::Card => {
-                start.get(CARD.object + 1)?;
+                start.get(Task::Card.layout().object() + 1)?;
                 Some(Self::Card(CardObjective { goal_y: goal }))
             }
+        }
+    }
+}
+
+impl Objective {
+    /// The absolute search goal: the screwdriver's yaw (radians), the card's `y` (metres).
+    pub fn goal(&self) -> f32 {
+        match self {
+            Self::Screwdriver(o) => o.goal_yaw,
+            Self::Card(o) => o.goal_y,
         }
     }
 }
@@ -432,6 +532,46 @@ mod tests {
         assert!(close(hold, want), "{hold} vs {want}");
         assert!(obj.accepts(&dims));
         assert!(!obj.accepts(&Task::Screwdriver.dims()));
+    }
+
+    #[test]
+    fn card_pushes_aim_at_x_0_and_theta_0() {
+        // A card at rest at x = 1 cm, θ = 0.1 rad, y = 0: the push goal is (0, −0.02, 0), so
+        // the terminal and running goal terms see x and θ, the regrasp's (which holds) not.
+        let dims = Task::Card.dims();
+        let mut seg = [0.0f32; 9 * 29];
+        for t in 0..9 {
+            seg[t * 29 + 8] = 0.01;
+            seg[t * 29 + 10] = libm::cosf(0.1);
+            seg[t * 29 + 11] = libm::sinf(0.1);
+        }
+        let obj = CardObjective::default();
+        let e2 = 0.01f32 * 0.01 + 0.02 * 0.02 + 0.1 * 0.1;
+        let push = obj.segment_cost(mode(Task::Card, "index"), &dims, &seg);
+        let want = 10.0 * e2 * ((10.0 + 15000.0) + (3.0 + 15000.0) * 7.0);
+        assert!(close(push, want), "{push} vs {want}");
+        assert_eq!(
+            obj.segment_cost(mode(Task::Card, "regrasp"), &dims, &seg),
+            0.0
+        );
+        assert_eq!(
+            mode_goal(TaskMode::CardBoth, [0.01f64, 0.005, 0.1]),
+            [0.0, 0.005 - 0.02, 0.0]
+        );
+        assert_eq!(
+            mode_goal(TaskMode::Turn, [0.1f64, 0.2, 1.0]),
+            [0.0, 0.0, 1.0 - core::f64::consts::PI / 6.0]
+        );
+        assert_eq!(
+            mode_goal(TaskMode::CardRegrasp, [0.1f32, 0.2, 0.3]),
+            [0.1, 0.2, 0.3]
+        );
+        assert_eq!(
+            f64::TURN_PER_MODE as f32,
+            SCREWDRIVER_TURN_PER_MODE,
+            "the f64 and f32 goal steps are one value"
+        );
+        assert_eq!(f64::CARD_MOVE_PER_MODE as f32, CARD_MOVE_PER_MODE);
     }
 
     #[test]

@@ -27,6 +27,7 @@ use crate::search::{
     ApproximateReason, Capacity, CostToCome, MAX_PLAN_LEN, Planner, Problem, SearchConfig,
     SearchReport, SearchStats, SearchStatus, SearchVariant, SegmentSampler, SegmentScorer,
 };
+use crate::session::{PlanSpec, SpecError, plan_with_adapters};
 use crate::task::Objective;
 
 const _: () = assert!(MAX_PLAN_LEN == MAX_PLAN_MODES, "plan lengths must agree");
@@ -355,6 +356,49 @@ impl PlanInputs {
     }
 }
 
+impl PlanInputs {
+    /// The session call of these inputs with the `prior` and `sampler` the kernel holds
+    /// (`SetPrior`, `SetSampler`).
+    pub fn into_spec(self, prior: MarkovPrior, sampler: SamplerConfig) -> PlanSpec {
+        PlanSpec {
+            task: self.task,
+            search: self.config,
+            sampler,
+            prior,
+            start: self.start,
+            objective: self.objective,
+            executed: self.executed,
+        }
+    }
+}
+
+impl From<SpecError> for RequestField {
+    fn from(e: SpecError) -> Self {
+        match e {
+            SpecError::StartState => RequestField::StartState,
+            SpecError::Goal => RequestField::Goal,
+            SpecError::Settings(_) => RequestField::Settings,
+            SpecError::Prior => RequestField::Prior,
+            SpecError::PreviousMode => RequestField::PreviousMode,
+        }
+    }
+}
+
+impl PlanSpec {
+    /// The `PlanRequest` of this call, as a wire transport sends it (the prior and sampler
+    /// go as `SetPrior` and `SetSampler` before it). Answered on the other side through
+    /// [`PlanInputs::from_request`] and [`PlanInputs::into_spec`], it is the same spec.
+    pub fn to_request(&self) -> PlanRequest {
+        PlanRequest {
+            task: self.task.into(),
+            start_state: self.start.clone(),
+            goal: self.goal(),
+            settings: self.search.into(),
+            previous_mode: self.executed.map(mode_to_wire),
+        }
+    }
+}
+
 /// The task and prior of a `SetPrior` table: `modes + modes²` non-negative finite values
 /// for the task's mode count, no row summing to zero (each row is renormalised). A bad table
 /// is [`RequestField::Prior`].
@@ -413,13 +457,8 @@ where
 {
     let inputs =
         PlanInputs::from_request(request).map_err(|field| WireError::InvalidRequest { field })?;
-    let report = planner.plan(
-        &inputs.config,
-        &inputs.problem(prior),
-        sampler,
-        scorer,
-        &inputs.objective,
-        clock,
-    );
+    // The sampler is already built; its settings are not the spec's to change here.
+    let spec = inputs.into_spec(*prior, SamplerConfig::default());
+    let report = plan_with_adapters(planner, &spec, sampler, scorer, clock);
     Ok(PlanReply::from(&report))
 }

@@ -1,4 +1,7 @@
-//! The tasks a model can be trained for and their trajectory layout (`CONTRACTS.md` §2).
+//! The tasks a model can be trained for and their trajectory layout (`CONTRACTS.md` §2): the
+//! kernel's [`Task`] sizes and column names, as owned strings for the contract checks.
+
+use dips_kernel::mode::Task;
 
 /// Layout of one task's trajectory rows, as the contract fixes it.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -24,63 +27,28 @@ impl TaskLayout {
             .cloned()
             .collect()
     }
-}
 
-fn joints(prefix: &str, fingers: &[&str]) -> Vec<String> {
-    fingers
-        .iter()
-        .flat_map(|f| (0..4).map(move |j| format!("{prefix}_{f}_{j}")))
-        .collect()
-}
-
-fn forces(names: &[&str]) -> Vec<String> {
-    names
-        .iter()
-        .flat_map(|f| {
-            ["x", "y", "z"]
-                .into_iter()
-                .map(move |a| format!("f_{f}_{a}"))
-        })
-        .collect()
+    /// The layout of `task`.
+    pub fn of(task: Task) -> Self {
+        let dims = task.dims();
+        let owned = |c: &[&str]| c.iter().map(|s| (*s).to_string()).collect();
+        Self {
+            name: task.name(),
+            horizon: dims.horizon,
+            fingers: dims.fingers,
+            state_columns: owned(task.state_columns()),
+            action_columns: owned(task.action_columns()),
+        }
+    }
 }
 
 /// The layout of a known task, `None` for a name the contract does not define.
 pub fn task_layout(name: &str) -> Option<TaskLayout> {
-    match name {
-        "screwdriver" => {
-            let fingers = ["index", "middle", "thumb"];
-            let mut state = joints("q", &fingers);
-            state.extend(["roll", "pitch", "cos_yaw", "sin_yaw"].map(String::from));
-            let mut action = joints("dq", &fingers);
-            action.extend(forces(&fingers));
-            Some(TaskLayout {
-                name: "screwdriver",
-                horizon: 13,
-                fingers: 3,
-                state_columns: state,
-                action_columns: action,
-            })
-        }
-        "card" => {
-            let fingers = ["index", "middle"];
-            let mut state = joints("q", &fingers);
-            state.extend(["x", "y", "cos_theta", "sin_theta"].map(String::from));
-            let mut action = joints("dq", &fingers);
-            action.extend(forces(&["index", "middle", "env"]));
-            Some(TaskLayout {
-                name: "card",
-                horizon: 9,
-                fingers: 2,
-                state_columns: state,
-                action_columns: action,
-            })
-        }
-        _ => None,
-    }
+    Task::from_name(name).ok().map(TaskLayout::of)
 }
 
 /// Names of the tasks the contract defines.
-pub const KNOWN_TASKS: [&str; 2] = ["screwdriver", "card"];
+pub const KNOWN_TASKS: [&str; 2] = [Task::ALL[0].name(), Task::ALL[1].name()];
 
 #[cfg(test)]
 mod tests {

@@ -8,6 +8,7 @@
 
 use std::path::PathBuf;
 
+use dips_host::planning::{Models, Session};
 use dips_kernel::adapters::{
     DiffusionSegmentSampler, DimField, DimsMismatch, DiscriminatorScorer, SamplerAdapterLayout,
     ScorerAdapterLayout,
@@ -17,16 +18,16 @@ use dips_kernel::diffusion::SamplerConfig;
 use dips_kernel::engine::DenoiserEngine;
 use dips_kernel::mode::Task;
 use dips_kernel::prior::MarkovPrior;
-use dips_kernel::search::{
-    ApproximateReason, Planner, Problem, SearchConfig, SearchReport, SearchStatus,
-};
-use dips_kernel::task::Objective;
+use dips_kernel::search::{ApproximateReason, Planner, SearchConfig, SearchReport, SearchStatus};
+use dips_kernel::session::{PlanSpec, plan_with_adapters};
 use dips_kernel::wire_convert::{PlanInputs, plan_request};
 use dips_onnx::{AnyEngine, EngineKind, Expectation, Role};
 use dips_wire::{PlanReply, PlanRequest, PlanStatus, SearchSettings};
 
 /// Small capacities: k ≤ 4, any task's segment.
 type SmallPlanner = Planner<4, 64, 32, 481>;
+/// A planning session with those capacities.
+type SmallSession = Session<4, 64, 32, 481>;
 
 fn fixture(task: Task, file: &str) -> PathBuf {
     let dir = match task {
@@ -71,40 +72,22 @@ fn config() -> SearchConfig {
     }
 }
 
-/// One planning call with models of `model_task` on a problem of `task`.
+/// One planning call with models of `model_task` on a problem of `task`, through the host's
+/// planning session (engines → adapters → planner).
 fn plan(kind: EngineKind, model_task: Task, task: Task) -> SearchReport {
-    let mut denoiser = load(kind, model_task, Role::Denoiser);
-    let mut discriminator = load(kind, model_task, Role::Discriminator);
-    let dims = DenoiserEngine::dims(&denoiser);
-    let batch = task.mode_count() * 4;
-    let sl = SamplerAdapterLayout::new(dims, batch, batch);
-    let cl = ScorerAdapterLayout::new(dims, batch);
-    let (mut sb, mut cb) = (vec![0.0f32; sl.total()], vec![0.0f32; cl.total()]);
-    let mut sampler =
-        DiffusionSegmentSampler::new(&mut denoiser, SamplerConfig::ddim(8), &mut sb, &sl).unwrap();
-    let mut scorer = DiscriminatorScorer::new(&mut discriminator, &mut cb, &cl).unwrap();
+    let models = Models {
+        denoiser: load(kind, model_task, Role::Denoiser),
+        discriminator: load(kind, model_task, Role::Discriminator),
+    };
     let prior = MarkovPrior::uniform(task.mode_count()).unwrap();
-    let start = start(task);
     let goal = match task {
         Task::Screwdriver => -1.0,
         Task::Card => -0.06,
     };
-    let objective = Objective::for_goal(task, &start, goal).unwrap();
-    let mut planner = Box::new(SmallPlanner::new());
-    planner.plan(
-        &config(),
-        &Problem {
-            task,
-            dims: task.dims(),
-            start: &start,
-            executed: None,
-            prior: &prior,
-        },
-        &mut sampler,
-        &mut scorer,
-        &objective,
-        &mut NoClock,
-    )
+    let mut spec = PlanSpec::with_settings(task, &start(task), goal, config(), prior).unwrap();
+    spec.sampler = SamplerConfig::ddim(8);
+    let mut session = SmallSession::new(models);
+    session.plan(&spec, &mut NoClock).unwrap()
 }
 
 #[test]
@@ -214,14 +197,9 @@ fn a_wire_request_is_planned_with_the_kernel_engine() {
     );
     assert!((1..=3).contains(&reply.stats.nodes_expanded));
     // The same call made directly gives the same reply.
-    let inputs = PlanInputs::from_request(&request).unwrap();
-    let report = planner.plan(
-        &inputs.config,
-        &inputs.problem(&prior),
-        &mut sampler,
-        &mut scorer,
-        &inputs.objective,
-        &mut NoClock,
-    );
+    let spec = PlanInputs::from_request(&request)
+        .unwrap()
+        .into_spec(prior, SamplerConfig::ddim(8));
+    let report = plan_with_adapters(&mut planner, &spec, &mut sampler, &mut scorer, &mut NoClock);
     assert_eq!(reply, PlanReply::from(&report));
 }

@@ -18,9 +18,6 @@
 
 use core::fmt::{self, Write};
 
-use dips_kernel::adapters::{
-    DiffusionSegmentSampler, DiscriminatorScorer, SamplerAdapterLayout, ScorerAdapterLayout,
-};
 use dips_kernel::budget::NoClock;
 use dips_kernel::diffusion::SamplerConfig;
 use dips_kernel::diffusion::schedule::fill_alpha_bar;
@@ -28,7 +25,8 @@ use dips_kernel::engine::{DenoiserEngine, DiscriminatorEngine, ModelDims, Normal
 use dips_kernel::mode::{ModeId, Task};
 use dips_kernel::prior::MarkovPrior;
 use dips_kernel::search::{Planner, SearchConfig};
-use dips_kernel::wire_convert::plan_request;
+use dips_kernel::session::{SessionLayout, plan_with_engines};
+use dips_kernel::wire_convert::PlanInputs;
 use dips_wire::{
     Feed, Frame, FrameAccumulator, FromKernel, MAX_ENCODED_FRAME_LEN, Message, PlanReply,
     PlanRequest, PlanStatus, SearchSettings, ToKernel, decode_frame, encode_frame,
@@ -266,8 +264,7 @@ impl DiscriminatorEngine for LogisticCardDiscriminator {
 /// Particles per node, node arena, open list, floats per card segment (9 × 29).
 type CheckPlanner = Planner<8, 256, 128, 261>;
 const K: u16 = 8;
-const SAMPLER_LAYOUT: SamplerAdapterLayout = SamplerAdapterLayout::new(DIMS, 4 * K as usize, 8);
-const SCORER_LAYOUT: ScorerAdapterLayout = ScorerAdapterLayout::new(DIMS, 8);
+const SESSION_LAYOUT: SessionLayout = SessionLayout::new(DIMS, 4 * K as usize, 8);
 const GOAL_Y_M: f32 = -0.04;
 
 fn fail(what: &'static str) -> Result<(), Failure> {
@@ -347,28 +344,25 @@ fn plan_once(
 ) -> Result<PlanReply, Failure> {
     let mut alpha_bar = [0.0f32; STEPS];
     check(fill_alpha_bar(STEPS, &mut alpha_bar), "schedule")?;
-    let mut denoiser = GaussianCardDenoiser { alpha_bar };
-    let mut discriminator = LogisticCardDiscriminator;
-    let mut sampler_buf = [0.0f32; SAMPLER_LAYOUT.total()];
-    let mut scorer_buf = [0.0f32; SCORER_LAYOUT.total()];
-    let mut sampler = DiffusionSegmentSampler::new(
-        &mut denoiser,
-        SamplerConfig::default(),
-        &mut sampler_buf,
-        &SAMPLER_LAYOUT,
-    )
-    .map_err(|_| Failure("sampler adapter refused its buffers"))?;
-    let mut scorer = DiscriminatorScorer::new(&mut discriminator, &mut scorer_buf, &SCORER_LAYOUT)
-        .map_err(|_| Failure("scorer adapter refused its buffers"))?;
-    plan_request(
+    let denoiser = GaussianCardDenoiser { alpha_bar };
+    let discriminator = LogisticCardDiscriminator;
+    let mut work = [0.0f32; SESSION_LAYOUT.total()];
+    // The firmware's path: the request checked, then one planning session (engines →
+    // adapters → planner).
+    let spec = PlanInputs::from_request(request)
+        .map_err(|_| Failure("the request was refused"))?
+        .into_spec(*prior, SamplerConfig::default());
+    let report = plan_with_engines(
         planner,
-        request,
-        prior,
-        &mut sampler,
-        &mut scorer,
+        &spec,
+        denoiser,
+        discriminator,
+        &SESSION_LAYOUT,
+        &mut work,
         &mut NoClock,
     )
-    .map_err(|_| Failure("the request was refused"))
+    .map_err(|_| Failure("the adapters refused their engines or buffers"))?;
+    Ok(PlanReply::from(&report))
 }
 
 fn self_test(line: &mut Line) -> Result<(), Failure> {

@@ -88,11 +88,9 @@ impl Recorder {
             self.current_mode = Some(mode_index);
             self.prefix.clear();
         }
-        let context: Vec<f32> = self.modes[mode_index]
-            .vector()
-            .iter()
-            .map(|v| *v as f32)
-            .collect();
+        let mode = self.modes[mode_index].contact_mode();
+        let mut context = vec![0.0f32; mode.fingers()];
+        mode.write_signs(&mut context);
         let mut best_row0 = None;
         for (j, x) in s.particles.iter().enumerate() {
             let plan = to_contract(s.problem, x);

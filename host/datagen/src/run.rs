@@ -74,18 +74,9 @@ impl DatagenSettings {
                 self.first_seed, self.demos
             ));
         }
-        let e = &self.exec;
-        for (name, v) in [
-            ("particles", e.particles),
-            ("horizon", e.horizon),
-            ("warmup_iters", e.warmup_iters),
-            ("online_iters", e.online_iters),
-        ] {
-            if v == 0 {
-                return bad(format!("execution setting {name} must be at least 1"));
-            }
-        }
-        Ok(())
+        self.exec
+            .validate()
+            .map_err(|e| DatagenError::Settings(e.to_string()))
     }
 }
 

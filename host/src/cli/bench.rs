@@ -7,14 +7,14 @@
 
 use anyhow::{Context, bail};
 use clap::{Args, Subcommand};
-use dips_kernel::budget::Clock;
 use dips_kernel::mode::{ContactMode, SegmentDims, Task};
 use dips_kernel::prior::MarkovPrior;
 use dips_kernel::rng::KernelRng;
-use dips_kernel::search::{
-    PaperPlanner, Problem, SearchConfig, SearchStats, SegmentSampler, SegmentScorer, TaskObjective,
-};
-use dips_kernel::task::{CardObjective, ScrewdriverObjective};
+use dips_kernel::search::{PaperPlanner, SearchConfig, SearchStats, SegmentSampler, SegmentScorer};
+use dips_kernel::session::{PlanSpec, plan_with_adapters};
+use dips_kernel::task::{CardObjective, Objective, ScrewdriverObjective};
+
+use crate::planning::StdClock;
 use serde_json::json;
 use std::time::{Duration, Instant};
 
@@ -77,16 +77,6 @@ pub fn run(args: BenchArgs) -> anyhow::Result<()> {
     }
 }
 
-/// `std::time::Instant` as the kernel's clock.
-#[derive(Debug)]
-pub(crate) struct StdClock(pub(crate) Instant);
-
-impl Clock for StdClock {
-    fn now_us(&mut self) -> u64 {
-        u64::try_from(self.0.elapsed().as_micros()).unwrap_or(u64::MAX)
-    }
-}
-
 /// The synthetic sampler: from each start state, contact modes move the object toward the
 /// task goal (screwdriver yaw −π/6, card y −2 cm) with multiplicative noise, regrasps hold
 /// it with small noise; joints take a noisy random walk; actions are noise. Layout as in
@@ -115,12 +105,9 @@ impl SegmentSampler for SyntheticSampler {
     ) -> Result<(), Self::Error> {
         let t0 = Instant::now();
         let (rows, d, sd) = (dims.horizon, dims.dim(), dims.state_dim);
-        // Object columns: screwdriver roll, pitch, cos, sin at 12..16; card x, y, cos, sin
-        // at 8..12. Joint columns precede them.
-        let (obj, joints) = match self.task {
-            Task::Screwdriver => (12, 12),
-            Task::Card => (8, 8),
-        };
+        // Object columns (roll, pitch or x, y, then cos, sin) after the joint columns.
+        let layout = self.task.layout();
+        let (obj, joints) = (layout.object(), layout.joints());
         for (i, m) in modes.iter().enumerate() {
             let s0 = &starts[i * sd..(i + 1) * sd];
             let seg = &mut out[i * rows * d..(i + 1) * rows * d];
@@ -220,11 +207,7 @@ fn search(a: &SearchBenchArgs) -> anyhow::Result<()> {
         max_depth: a.depth,
         node_budget: a.expansions_per_call,
         time_budget_ms: 0,
-        ..if task == Task::Card {
-            SearchConfig::card()
-        } else {
-            SearchConfig::default()
-        }
+        ..SearchConfig::for_task(task)
     };
     config
         .validate()
@@ -238,33 +221,23 @@ fn search(a: &SearchBenchArgs) -> anyhow::Result<()> {
     }
     .map_err(|e| anyhow::anyhow!("{e}"))?;
     let start = start_state(task);
-    let problem = Problem {
-        task,
-        dims: task.dims(),
-        start: &start,
-        executed: None,
-        prior: &prior,
+    let mut spec = PlanSpec::with_settings(task, &start, -100.0, config, prior)
+        .map_err(|e| anyhow::anyhow!("{e}"))?;
+    // Goals out of reach, so every call spends its node budget (the yaw unwrapped around 0).
+    spec.objective = match task {
+        Task::Screwdriver => Objective::Screwdriver(ScrewdriverObjective {
+            reference_yaw: 0.0,
+            goal_yaw: -100.0,
+        }),
+        Task::Card => Objective::Card(CardObjective { goal_y: -100.0 }),
     };
-    // Goals out of reach, so every call spends its node budget.
-    let screwdriver = ScrewdriverObjective {
-        reference_yaw: 0.0,
-        goal_yaw: -100.0,
-    };
-    let card = CardObjective { goal_y: -100.0 };
-    match task {
-        Task::Screwdriver => measure(a, &config, &problem, &screwdriver),
-        Task::Card => measure(a, &config, &problem, &card),
-    }
+    measure(a, &spec)
 }
 
 /// Plan repeatedly for `a.seconds` and print the figures.
-fn measure<O: TaskObjective>(
-    a: &SearchBenchArgs,
-    config: &SearchConfig,
-    problem: &Problem<'_>,
-    objective: &O,
-) -> anyhow::Result<()> {
-    let task = problem.task;
+fn measure(a: &SearchBenchArgs, spec: &PlanSpec) -> anyhow::Result<()> {
+    let task = spec.task;
+    let config = &spec.search;
     let mut planner: Box<PaperPlanner> = Box::new(PaperPlanner::new());
     let mut sampler = SyntheticSampler {
         task,
@@ -275,14 +248,7 @@ fn measure<O: TaskObjective>(
     let mut clock = StdClock(Instant::now());
 
     // Warm-up call (not measured).
-    let warm = planner.plan(
-        config,
-        problem,
-        &mut sampler,
-        &mut scorer,
-        objective,
-        &mut clock,
-    );
+    let warm = plan_with_adapters(&mut planner, spec, &mut sampler, &mut scorer, &mut clock);
     if !warm.status.has_plan() {
         bail!("planning failed: {:?}", warm.status);
     }
@@ -294,18 +260,8 @@ fn measure<O: TaskObjective>(
     let mut last_status = warm.status;
     let t0 = Instant::now();
     while t0.elapsed().as_secs_f64() < a.seconds {
-        let c = SearchConfig {
-            seed: a.seed.wrapping_add(calls),
-            ..*config
-        };
-        let r = planner.plan(
-            &c,
-            problem,
-            &mut sampler,
-            &mut scorer,
-            objective,
-            &mut clock,
-        );
+        let call = spec.clone().with_seed(a.seed.wrapping_add(calls));
+        let r = plan_with_adapters(&mut planner, &call, &mut sampler, &mut scorer, &mut clock);
         last_status = r.status;
         total.nodes_expanded += r.stats.nodes_expanded;
         total.nodes_generated += r.stats.nodes_generated;

@@ -70,7 +70,7 @@ pub fn run(args: CsvtoBenchArgs) -> anyhow::Result<()> {
         &mut particles,
         settings.warmup_iters,
         &settings.csvto,
-    );
+    )?;
     let warmup_s = t0.elapsed().as_secs_f64();
     let mut times = Vec::with_capacity(args.repeats);
     let mut cpu = Vec::with_capacity(args.repeats);
@@ -83,7 +83,7 @@ pub fn run(args: CsvtoBenchArgs) -> anyhow::Result<()> {
             &mut particles,
             settings.online_iters,
             &settings.csvto,
-        );
+        )?;
         times.push(t.elapsed().as_secs_f64());
         cpu.push(process_cpu_s().zip(c).map(|(b, a)| b - a));
         violation = rep.max_eq_violation[0];

@@ -7,6 +7,7 @@ use clap::Args;
 
 use crate::execute::{ExecSettings, prior_sequence_for_seed, run_episode};
 use crate::problems::Mode;
+use crate::problems::mode::parse_mode;
 use crate::scenes::SceneKind;
 
 /// Arguments of `dips episode`.
@@ -60,7 +61,7 @@ pub fn run(args: EpisodeArgs) -> anyhow::Result<()> {
     let modes: Vec<Mode> = match &args.modes {
         Some(names) => names
             .iter()
-            .map(|n| Mode::from_name(task, n.trim()))
+            .map(|n| parse_mode(task, n.trim()))
             .collect::<Result<_, _>>()?,
         None => prior_sequence_for_seed(task, args.seed),
     };

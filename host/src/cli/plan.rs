@@ -3,26 +3,22 @@
 //! The models are read from `--models DIR` (`denoiser.onnx` and `discriminator.onnx`, contract
 //! v1, checked against the task) and run by the kernel's interpreter (default) or tract. The
 //! search is the kernel's `PaperPlanner` with the paper's settings unless flags change them,
-//! the prior is the paper's ([`MarkovPrior::paper`]), and the start state is the world's.
+//! the prior is the paper's (`MarkovPrior::paper`), and the start state is the world's. The
+//! wiring is the shared planning session ([`crate::planning::Session`]).
 
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::time::Instant;
 
 use anyhow::{Context, anyhow, bail};
 use clap::{Args, ValueEnum};
-use dips_kernel::adapters::{
-    DiffusionSegmentSampler, DiscriminatorScorer, SamplerAdapterLayout, ScorerAdapterLayout,
-};
 use dips_kernel::diffusion::SamplerConfig;
-use dips_kernel::engine::DenoiserEngine;
 use dips_kernel::mode::Task;
-use dips_kernel::prior::MarkovPrior;
-use dips_kernel::search::{PaperPlanner, Problem, SearchConfig};
-use dips_kernel::task::{CARD_GOAL_Y, Objective, ScrewdriverObjective};
-use dips_onnx::{AnyEngine, EngineKind, Expectation, Role};
+use dips_kernel::search::SearchConfig;
+use dips_kernel::session::PlanSpec;
+use dips_onnx::EngineKind;
 use serde_json::json;
 
-use super::bench::StdClock;
+use crate::planning::{Models, PaperSession, StdClock};
 use crate::problems::contract::contract_state;
 use crate::scenes::SceneKind;
 use crate::world::World;
@@ -87,44 +83,21 @@ fn sampler_config(spec: &str) -> anyhow::Result<SamplerConfig> {
     Ok(SamplerConfig::ddim(steps))
 }
 
-fn load(kind: EngineKind, dir: &Path, role: Role, task: Task) -> anyhow::Result<AnyEngine> {
-    let file = dir.join(match role {
-        Role::Denoiser => "denoiser.onnx",
-        Role::Discriminator => "discriminator.onnx",
-    });
-    if !file.is_file() {
-        bail!("no {role:?} model at {}", file.display());
-    }
-    AnyEngine::load(kind, &file, &Expectation::new(role, task.name()))
-        .with_context(|| format!("loading {}", file.display()))
-}
-
-/// Run the command.
-pub fn run(args: PlanArgs) -> anyhow::Result<()> {
-    let scene = SceneKind::from_name(&args.task).with_context(|| {
-        format!(
-            "unknown task `{}` (expected screwdriver or card)",
-            args.task
-        )
-    })?;
-    let task = match scene {
-        SceneKind::Screwdriver => Task::Screwdriver,
-        SceneKind::Card => Task::Card,
-    };
-    let sampler_config = sampler_config(&args.sampler)?;
+/// The search settings of `dips plan`: the task's own ([`SearchConfig::for_task`]: the
+/// screwdriver's α = 1e4, β = 1e3, depth 7; the card's α = 1e5, β = 0, depth 5) with the
+/// flags' changes.
+pub fn search_config(task: Task, args: &PlanArgs) -> anyhow::Result<SearchConfig> {
     if !(args.time_budget_s.is_finite() && args.time_budget_s >= 0.0) {
         bail!("--time-budget-s must be a finite number of seconds ≥ 0");
     }
+    let base = SearchConfig::for_task(task);
     let config = SearchConfig {
         k: args.k,
-        max_depth: args.depth.unwrap_or(match task {
-            Task::Screwdriver => 7,
-            Task::Card => 5,
-        }),
+        max_depth: args.depth.unwrap_or(base.max_depth),
         node_budget: args.node_budget,
         time_budget_ms: (args.time_budget_s * 1e3).round().min(f64::from(u32::MAX)) as u32,
         seed: args.seed,
-        ..SearchConfig::default()
+        ..base
     };
     config
         .validate()
@@ -135,61 +108,50 @@ pub fn run(args: PlanArgs) -> anyhow::Result<()> {
             config.k
         );
     }
+    Ok(config)
+}
+
+/// Run the command.
+pub fn run(args: PlanArgs) -> anyhow::Result<()> {
+    let scene = SceneKind::from_name(&args.task).with_context(|| {
+        format!(
+            "unknown task `{}` (expected screwdriver or card)",
+            args.task
+        )
+    })?;
+    let task = scene.task();
+    let sampler = sampler_config(&args.sampler)?;
+    let config = search_config(task, &args)?;
 
     let start: Vec<f32> = contract_state(&World::new(scene).state())
         .into_iter()
         .map(|v| v as f32)
         .collect();
-    let goal = match (args.goal, task) {
-        (Some(goal), _) => goal,
-        (None, Task::Screwdriver) => {
-            ScrewdriverObjective::from_state(&start)
-                .ok_or_else(|| anyhow!("the world's screwdriver state is too short"))?
-                .goal_yaw
-        }
-        (None, Task::Card) => CARD_GOAL_Y,
+    let goal = match args.goal {
+        Some(goal) => goal,
+        None => PlanSpec::paper_goal(task, &start)
+            .ok_or_else(|| anyhow!("the world's {} state is too short", task.name()))?,
     };
-    let objective =
-        Objective::for_goal(task, &start, goal).ok_or_else(|| anyhow!("--goal must be finite"))?;
-    let prior = MarkovPrior::paper(task, config.p_min)
-        .map_err(|e| anyhow!("the paper's prior with p_min {}: {e}", config.p_min))?;
+    let mut spec = PlanSpec::new(task, &start, goal).map_err(|e| match e {
+        dips_kernel::session::SpecError::Goal => anyhow!("--goal must be finite"),
+        e => anyhow!("{e}"),
+    })?;
+    spec.search = config;
+    spec.sampler = sampler;
+    spec.check().map_err(|e| anyhow!("{e}"))?;
 
     let kind = match args.engine {
         PlanEngine::Kernel => EngineKind::Kernel,
         PlanEngine::Tract => EngineKind::Tract,
     };
-    let mut denoiser = load(kind, &args.models, Role::Denoiser, task)?;
-    let mut discriminator = load(kind, &args.models, Role::Discriminator, task)?;
-    let dims = DenoiserEngine::dims(&denoiser);
-    let batch = task.mode_count() * usize::from(config.k);
-    let sl = SamplerAdapterLayout::new(dims, batch, batch);
-    let cl = ScorerAdapterLayout::new(dims, batch);
-    let (mut sb, mut cb) = (vec![0.0f32; sl.total()], vec![0.0f32; cl.total()]);
-    let mut sampler = DiffusionSegmentSampler::new(&mut denoiser, sampler_config, &mut sb, &sl)
-        .map_err(|e| anyhow!("denoiser adapter: {e}"))?;
-    let mut scorer = DiscriminatorScorer::new(&mut discriminator, &mut cb, &cl)
-        .map_err(|e| anyhow!("discriminator adapter: {e}"))?;
-    let mut planner = Box::new(PaperPlanner::new());
+    let mut session = PaperSession::new(Models::load(kind, &args.models, task)?);
     let t0 = Instant::now();
-    let report = planner.plan(
-        &config,
-        &Problem {
-            task,
-            dims: task.dims(),
-            start: &start,
-            executed: None,
-            prior: &prior,
-        },
-        &mut sampler,
-        &mut scorer,
-        &objective,
-        &mut StdClock(t0),
-    );
+    let report = session.plan(&spec, &mut StdClock(t0))?;
     let planning_s = t0.elapsed().as_secs_f64();
     let names: Vec<&str> = report
         .modes
         .iter()
-        .map(|m| task.modes().get(usize::from(m.0)).map_or("?", |s| s.name))
+        .map(|m| task.mode_name(*m).unwrap_or("?"))
         .collect();
     let s = &report.stats;
     let out = json!({
@@ -198,6 +160,16 @@ pub fn run(args: PlanArgs) -> anyhow::Result<()> {
         "engine": format!("{:?}", args.engine).to_lowercase(),
         "sampler": args.sampler,
         "goal": goal,
+        "settings": {
+            "k": config.k,
+            "max_depth": config.max_depth,
+            "alpha": config.alpha,
+            "beta": config.beta,
+            "gamma": config.gamma,
+            "p_min": config.p_min,
+            "node_budget": config.node_budget,
+            "time_budget_ms": config.time_budget_ms,
+        },
         "status": format!("{:?}", report.status),
         "modes": names,
         "expected_progress": finite_or_null(report.expected_progress),
@@ -221,5 +193,47 @@ fn finite_or_null(v: f32) -> serde_json::Value {
         json!(v)
     } else {
         serde_json::Value::Null
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use clap::Parser;
+
+    #[derive(Debug, Parser)]
+    struct Cli {
+        #[command(flatten)]
+        plan: PlanArgs,
+    }
+
+    fn args(extra: &[&str]) -> PlanArgs {
+        let mut argv = vec!["dips-plan", "--task", "x"];
+        argv.extend_from_slice(extra);
+        Cli::parse_from(argv).plan
+    }
+
+    #[test]
+    fn each_task_plans_with_its_own_search_settings() {
+        let sd = search_config(Task::Screwdriver, &args(&[])).unwrap();
+        assert_eq!((sd.alpha, sd.beta, sd.max_depth), (1e4, 1e3, 7));
+        let card = search_config(Task::Card, &args(&[])).unwrap();
+        assert_eq!((card.alpha, card.beta, card.max_depth), (1e5, 0.0, 5));
+        assert_eq!(
+            card,
+            SearchConfig {
+                time_budget_ms: 300_000,
+                ..SearchConfig::card()
+            }
+        );
+        // Flags change only what they name.
+        let c = search_config(
+            Task::Card,
+            &args(&["--k", "4", "--depth", "3", "--seed", "9"]),
+        );
+        let c = c.unwrap();
+        assert_eq!((c.k, c.max_depth, c.seed), (4, 3, 9));
+        assert_eq!((c.alpha, c.beta), (1e5, 0.0));
+        assert!(search_config(Task::Card, &args(&["--k", "17"])).is_err());
     }
 }

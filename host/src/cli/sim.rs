@@ -285,8 +285,7 @@ fn run(args: &RunArgs) -> Result<(), SimCliError> {
     let (traj, failure) = match &args.log {
         None => run_commands(&mut world, &dq),
         Some(log) => {
-            // Route every action through the Hand trait so the log can be replayed.
-            use crate::hand::Hand;
+            // Route every action through the recorder so the log can be replayed.
             let params = world.params().clone();
             let mut rec =
                 Recorder::create(world, log, Some(params)).map_err(anyhow::Error::from)?;
@@ -308,7 +307,7 @@ fn run(args: &RunArgs) -> Result<(), SimCliError> {
                         targets[f.index()][j] += row[4 * i + j];
                     }
                 }
-                match rec.command(&targets) {
+                match rec.step_world(&targets) {
                     Ok(rep) => {
                         traj.states.push(rec.inner().state());
                         traj.valid.push(rec.inner().valid());

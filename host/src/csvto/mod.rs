@@ -16,7 +16,7 @@ pub mod resample;
 pub mod solver;
 
 pub use problem::{Problem, StepConstraints};
-pub use solver::{CsvtoSettings, SolveReport, solve};
+pub use solver::{CsvtoError, CsvtoSettings, SolveReport, solve};
 
 #[cfg(test)]
 mod tests;

@@ -45,6 +45,60 @@ impl Default for CsvtoSettings {
     }
 }
 
+/// A CSVTO setting or call that cannot be run.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum CsvtoError {
+    /// A setting is out of range (named).
+    #[error(
+        "CSVTO setting `{0}` is out of range (must be finite and positive, or ≥ 0 for weights)"
+    )]
+    Setting(&'static str),
+    /// A count is zero.
+    #[error("CSVTO count `{0}` must be at least 1")]
+    ZeroCount(&'static str),
+    /// No particles were given.
+    #[error("no particles to optimise")]
+    NoParticles,
+    /// A particle's length does not match the problem.
+    #[error("particle {index} has {got} values; the problem needs {expected}")]
+    ParticleLength {
+        /// Which particle.
+        index: usize,
+        /// Its length.
+        got: usize,
+        /// `H · row_dim`.
+        expected: usize,
+    },
+}
+
+impl CsvtoSettings {
+    /// Check every setting: weights finite and `≥ 0`, step size, step-norm and slack bounds
+    /// finite and `> 0`. The first bad one is named.
+    pub fn validate(&self) -> Result<(), CsvtoError> {
+        let non_negative = [
+            ("alpha_j", self.alpha_j),
+            ("alpha_c", self.alpha_c),
+            ("penalty", self.penalty),
+        ];
+        for (name, v) in non_negative {
+            if !(v.is_finite() && v >= 0.0) {
+                return Err(CsvtoError::Setting(name));
+            }
+        }
+        let positive = [
+            ("step_size", self.step_size),
+            ("max_step_norm", self.max_step_norm),
+            ("slack_bound", self.slack_bound),
+        ];
+        for (name, v) in positive {
+            if !(v.is_finite() && v > 0.0) {
+                return Err(CsvtoError::Setting(name));
+            }
+        }
+        Ok(())
+    }
+}
+
 /// What a solve returns besides the updated particles.
 #[derive(Debug, Clone, PartialEq)]
 pub struct SolveReport {
@@ -85,18 +139,29 @@ fn evaluate(problem: &dyn Problem, layout: &Layout, x: &[f64], z: &[f64]) -> Eva
 
 /// Run `iters` CSVTO iterations on `particles` (each a flat `H·n` trajectory) for `problem`,
 /// then sort them by penalty, best first. Slacks are initialised from the inequalities at
-/// the start of the solve.
+/// the start of the solve. Bad settings, no particles or a particle of the wrong length are
+/// errors, checked before anything runs.
 pub fn solve(
     problem: &dyn Problem,
     particles: &mut Vec<Vec<f64>>,
     iters: usize,
     settings: &CsvtoSettings,
-) -> SolveReport {
+) -> Result<SolveReport, CsvtoError> {
+    settings.validate()?;
     let layout = Layout::of(problem);
     let np = particles.len();
+    if np == 0 {
+        return Err(CsvtoError::NoParticles);
+    }
     let dim_x = problem.horizon() * problem.row_dim();
+    if let Some((index, p)) = particles.iter().enumerate().find(|(_, p)| p.len() != dim_x) {
+        return Err(CsvtoError::ParticleLength {
+            index,
+            got: p.len(),
+            expected: dim_x,
+        });
+    }
     for p in particles.iter_mut() {
-        assert_eq!(p.len(), dim_x, "particle length does not match the problem");
         problem.clamp(p);
     }
     let mut slacks: Vec<Vec<f64>> = particles
@@ -181,7 +246,7 @@ pub fn solve(
                 problem.clamp(x);
             });
     }
-    finish(problem, &layout, particles, &slacks, settings)
+    Ok(finish(problem, &layout, particles, &slacks, settings))
 }
 
 /// Score every particle and sort them by penalty, best first.

@@ -75,7 +75,7 @@ fn equality_qp_converges_to_constrained_optimum() {
         start: [0.0, 1.0],
     };
     let mut parts = vec![vec![0.3, -0.2, 0.9, 0.0, -0.4, 0.7, 0.1, 0.1]];
-    let rep = solve(&p, &mut parts, 300, &settings());
+    let rep = solve(&p, &mut parts, 300, &settings()).unwrap();
     for t in 0..4 {
         assert!((parts[0][2 * t] - 0.5).abs() < 1e-3, "{:?}", parts[0]);
         assert!((parts[0][2 * t + 1] - 0.5).abs() < 1e-3, "{:?}", parts[0]);
@@ -91,7 +91,7 @@ fn inequalities_are_respected_at_the_optimum() {
         start: [0.0, 1.0],
     };
     let mut parts = vec![vec![0.0, 1.0, 0.0, 1.0, 0.0, 1.0]];
-    let rep = solve(&p, &mut parts, 400, &settings());
+    let rep = solve(&p, &mut parts, 400, &settings()).unwrap();
     for t in 0..3 {
         let want = 0.1 * (t as f64 + 1.0);
         assert!(
@@ -118,7 +118,7 @@ fn particles_stay_feasible_and_spread_and_sort_by_penalty() {
                 .collect()
         })
         .collect();
-    let rep = solve(&p, &mut parts, 200, &settings());
+    let rep = solve(&p, &mut parts, 200, &settings()).unwrap();
     for x in &parts {
         for t in 0..3 {
             assert!((x[2 * t] + x[2 * t + 1] - 1.0).abs() < 1e-6);

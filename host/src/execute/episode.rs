@@ -43,7 +43,7 @@ pub fn sample_prior_sequence(task: SceneKind, rng: &mut KernelRng) -> Vec<Mode> 
             seq
         }
         SceneKind::Card => {
-            let all = Mode::all(task);
+            let all = task.modes();
             (0..CARD_MODES)
                 .map(|_| all[rng.below(all.len() as u32) as usize])
                 .collect()

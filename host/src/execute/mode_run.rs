@@ -1,13 +1,12 @@
 //! One contact mode executed closed-loop in the world.
 
-use std::f64::consts::PI;
 use std::time::Instant;
 
 use dips_kernel::rng::KernelRng;
 use serde::Serialize;
 
 use super::settings::ExecSettings;
-use crate::csvto::{Problem, SolveReport, solve};
+use crate::csvto::{CsvtoError, Problem, SolveReport, solve};
 use crate::hand::{Hand, HandError, ObjectPose};
 use crate::kinematics::HandModel;
 use crate::problems::init::default_particles;
@@ -15,21 +14,12 @@ use crate::problems::{AllegroProblem, Mode, ProblemError, ProblemSpec};
 use crate::scenes::SceneKind;
 use crate::scenes::{card, screwdriver};
 
-/// Screwdriver turn goal per mode (rad, clockwise negative).
-pub const TURN_GOAL: f64 = -PI / 6.0;
-/// Card push goal per mode (m along y).
-pub const CARD_PUSH_GOAL: f64 = -0.02;
-
-/// The object goal of `mode` from the state `start` (spec §2.4): turn to `yaw − π/6` with
-/// roll and pitch at 0; card moves to `(0, y − 0.02, 0)`; regrasps hold the pose.
+/// The object goal of `mode` from the raw state `start` (`[q, o]`): the kernel's
+/// [`dips_kernel::task::mode_goal`], the one definition the search's `J` uses too (turn to
+/// `yaw − π/6` with roll and pitch at 0; card moves to `(0, y − 0.02, 0)`; regrasps hold).
 pub fn mode_goal(mode: Mode, start: &[f64]) -> [f64; 3] {
     let o = &start[start.len() - 3..];
-    match mode {
-        Mode::Turn => [0.0, 0.0, o[2] + TURN_GOAL],
-        Mode::IndexRegrasp | Mode::ThumbMiddleRegrasp => [0.0, 0.0, o[2]],
-        Mode::CardIndex | Mode::CardMiddle | Mode::CardBoth => [0.0, o[1] + CARD_PUSH_GOAL, 0.0],
-        Mode::CardRegrasp => [o[0], o[1], o[2]],
-    }
+    dips_kernel::task::mode_goal(mode, [o[0], o[1], o[2]])
 }
 
 /// Errors from closed-loop execution.
@@ -63,6 +53,9 @@ pub enum ExecError {
     /// No initial particles were given.
     #[error("no initial particles")]
     NoParticles,
+    /// The execution or CSVTO settings cannot be run, or CSVTO was called wrongly.
+    #[error(transparent)]
+    Csvto(#[from] CsvtoError),
 }
 
 /// What one executed step did.
@@ -220,6 +213,7 @@ pub fn run_mode_observed<H: Hand + ?Sized>(
     progress: &mut dyn FnMut(&str),
     observe: &mut dyn FnMut(StepParticles<'_>),
 ) -> Result<ModeRun, ExecError> {
+    settings.validate()?;
     let task: SceneKind = hand.scene();
     let start_state = hand_state(hand);
     let goal = mode_goal(mode, &start_state);
@@ -266,7 +260,7 @@ pub fn run_mode_observed<H: Hand + ?Sized>(
             settings.online_iters
         };
         let t0 = Instant::now();
-        let mut report = solve(&problem, &mut particles, iters, &settings.csvto);
+        let mut report = solve(&problem, &mut particles, iters, &settings.csvto)?;
         let mut iters = iters;
         if k == 0 {
             // A warm-up that has not converged leaves every online solve to recover from an
@@ -283,7 +277,7 @@ pub fn run_mode_observed<H: Hand + ?Sized>(
                 } else {
                     default_particles(&problem, mode, settings.particles, rng)
                 };
-                let r = solve(&problem, &mut again, settings.warmup_iters, &settings.csvto);
+                let r = solve(&problem, &mut again, settings.warmup_iters, &settings.csvto)?;
                 iters += settings.warmup_iters;
                 progress(&format!(
                     "{} warm-up not converged (violation {:.1e}); retry {retries}: {:.1e}",

@@ -1,6 +1,6 @@
 //! Per-task execution settings.
 
-use crate::csvto::CsvtoSettings;
+use crate::csvto::{CsvtoError, CsvtoSettings};
 use crate::scenes::SceneKind;
 
 /// Largest constraint violation of a converged warm-up. Screwdriver warm-ups end below it
@@ -36,6 +36,26 @@ pub struct ExecSettings {
 }
 
 impl ExecSettings {
+    /// Check the solver settings and that every count (particles, iterations, horizon) is at
+    /// least 1; the tolerance must be finite and `≥ 0`. The first bad one is named.
+    pub fn validate(&self) -> Result<(), CsvtoError> {
+        self.csvto.validate()?;
+        for (name, n) in [
+            ("particles", self.particles),
+            ("warmup_iters", self.warmup_iters),
+            ("online_iters", self.online_iters),
+            ("horizon", self.horizon),
+        ] {
+            if n == 0 {
+                return Err(CsvtoError::ZeroCount(name));
+            }
+        }
+        if !(self.warmup_tolerance.is_finite() && self.warmup_tolerance >= 0.0) {
+            return Err(CsvtoError::Setting("warmup_tolerance"));
+        }
+        Ok(())
+    }
+
     /// The DIPS settings: screwdriver N = 16, α_J = 5e-3, 100/25 iterations, H = 12; card
     /// α_J = 1e-2, 150/35 iterations, H = 8; α_C = 1, ε = 0.1 for both. The card clips the
     /// Stein and constraint parts of the step separately (see

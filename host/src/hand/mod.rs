@@ -32,8 +32,11 @@ pub trait Hand {
     fn joint_positions(&self) -> HandJoints;
     /// Current estimate of the object pose.
     fn object_pose(&self) -> ObjectPose;
-    /// Send joint position targets and hold them for one action.
-    fn command(&mut self, targets: &HandJoints) -> Result<StepReport, HandError>;
+    /// Send joint position targets and hold them for one action. A hand reports only
+    /// whether it did; the new state is read back with [`Hand::joint_positions`] and
+    /// [`Hand::object_pose`]. (The simulated world's solver details, [`StepReport`], come
+    /// from the world itself: [`World::step_targets`], or [`Recorder::step_world`].)
+    fn command(&mut self, targets: &HandJoints) -> Result<(), HandError>;
 }
 
 /// Errors from hand I/O, recording and replay.
@@ -90,8 +93,9 @@ impl Hand for World {
         }
     }
 
-    fn command(&mut self, targets: &HandJoints) -> Result<StepReport, HandError> {
-        Ok(self.step_targets(targets)?)
+    fn command(&mut self, targets: &HandJoints) -> Result<(), HandError> {
+        self.step_targets(targets)?;
+        Ok(())
     }
 }
 
@@ -152,7 +156,9 @@ struct LogStep {
     targets: HandJoints,
     joints: HandJoints,
     object: ObjectRecord,
-    report: StepReport,
+    /// The world's solver report, when the recorded hand is the simulated world.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    report: Option<StepReport>,
 }
 
 const LOG_FORMAT: &str = "dips-hand-log-1";
@@ -236,14 +242,35 @@ impl<H: Hand> Hand for Recorder<H> {
         self.inner.object_pose()
     }
 
-    fn command(&mut self, targets: &HandJoints) -> Result<StepReport, HandError> {
-        let report = self.inner.command(targets)?;
+    fn command(&mut self, targets: &HandJoints) -> Result<(), HandError> {
+        self.inner.command(targets)?;
+        self.log_step(targets, None)
+    }
+}
+
+impl Recorder<World> {
+    /// Step the recorded world to `targets` and log it with the world's solver report, which
+    /// is returned.
+    pub fn step_world(&mut self, targets: &HandJoints) -> Result<StepReport, HandError> {
+        let report = self.inner.step_targets(targets)?;
+        self.log_step(targets, Some(report.clone()))?;
+        Ok(report)
+    }
+}
+
+impl<H: Hand> Recorder<H> {
+    /// Append the step just taken to the log.
+    fn log_step(
+        &mut self,
+        targets: &HandJoints,
+        report: Option<StepReport>,
+    ) -> Result<(), HandError> {
         let step = LogStep {
             step: self.steps,
             targets: *targets,
             joints: self.inner.joint_positions(),
             object: ObjectRecord::from_pose(&self.inner.object_pose()),
-            report: report.clone(),
+            report,
         };
         let line = serde_json::to_string(&step).map_err(|e| HandError::Format {
             path: self.partial.display().to_string(),
@@ -252,7 +279,7 @@ impl<H: Hand> Hand for Recorder<H> {
         })?;
         writeln!(self.out, "{line}").map_err(io_err(&self.partial))?;
         self.steps += 1;
-        Ok(report)
+        Ok(())
     }
 }
 

@@ -35,6 +35,7 @@ use super::sdf;
 use crate::csvto::{Problem, StepConstraints};
 use crate::kinematics::HandModel;
 use crate::scenes::{self, SceneKind};
+use dips_kernel::task::CostWeights;
 
 /// Regrasp clearance δ (m). A regrasping finger keeps it at every step before the last, to
 /// the object both at the end of the step (`sdf(q_{t+1}, o_{t+1})`, the spec's row) and at its
@@ -76,12 +77,6 @@ pub const CARD_THETA_UNIT: f64 = 0.1;
 pub const JOINT_MARGIN: f64 = 0.05;
 /// Force bound per component (N).
 pub const FORCE_BOUND: f64 = 10.0;
-/// Global cost weight `α_cost`.
-pub const COST_SCALE: f64 = 10.0;
-/// Regrasp target-contact cost weight.
-pub const REGRASP_WEIGHT: f64 = 1000.0;
-/// Upright cost weight on roll² + pitch² (screwdriver).
-pub const UPRIGHT_WEIGHT: f64 = 500.0;
 /// Largest joint command per step before the torque limit (`π/5`).
 pub const DQ_BOUND: f64 = PI / 5.0;
 /// Torque limit used to bound `Δq` by `τ_max / K_p`.
@@ -136,6 +131,33 @@ pub enum ProblemError {
     },
 }
 
+/// The kernel's [`CostWeights`] of a task in `f64` (exact: every weight is an integer).
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct Weights {
+    scale: f64,
+    joint_step: f64,
+    joint_delta: f64,
+    object_step: f64,
+    contact_force: f64,
+    upright: f64,
+    regrasp_target: f64,
+}
+
+impl Weights {
+    fn of(task: SceneKind) -> Self {
+        let w = CostWeights::of(task.task());
+        Self {
+            scale: f64::from(w.scale),
+            joint_step: f64::from(w.joint_step),
+            joint_delta: f64::from(w.joint_delta),
+            object_step: f64::from(w.object_step),
+            contact_force: f64::from(w.contact_force),
+            upright: f64::from(w.upright),
+            regrasp_target: f64::from(w.regrasp_target),
+        }
+    }
+}
+
 /// The multi-finger contact problem.
 #[derive(Debug, Clone)]
 pub struct AllegroProblem {
@@ -160,7 +182,9 @@ pub struct AllegroProblem {
     joint_lo: Vec<f64>,
     joint_hi: Vec<f64>,
     dq_bound: f64,
-    /// Goal weights (terminal, running).
+    /// The task's cost weights (the kernel's [`CostWeights`], in `f64`).
+    weights: Weights,
+    /// Goal weights (terminal, running) of this mode.
     goal_weights: (f64, f64),
     /// Metres (or radians) per problem unit of each object coordinate.
     units: [f64; 3],
@@ -273,9 +297,9 @@ impl AllegroProblem {
     /// Build the problem for `spec` with the hand `hand`.
     pub fn new(hand: &HandModel, spec: &ProblemSpec) -> Result<Self, ProblemError> {
         let task = spec.task;
-        let contact = spec.mode.contacts().to_vec();
         let fingers = task.task_fingers();
         let nf = fingers.len();
+        let contact: Vec<bool> = (0..nf).map(|i| spec.mode.in_contact(i)).collect();
         if spec.mode.task() != task {
             return Err(ProblemError::ModeTask {
                 mode: spec.mode.name(),
@@ -365,10 +389,8 @@ impl AllegroProblem {
             lower[j] = -FORCE_BOUND;
             upper[j] = FORCE_BOUND;
         }
-        let goal_weights = match task {
-            SceneKind::Screwdriver => (10.0, 3.0),
-            SceneKind::Card => (15_000.0, 15_000.0),
-        };
+        let (terminal, running) = CostWeights::of(task.task()).goal_weights(nc > 0);
+        let goal_weights = (f64::from(terminal), f64::from(running));
         let units = match task {
             SceneKind::Screwdriver => [1.0; 3],
             SceneKind::Card => [CARD_POS_UNIT, CARD_POS_UNIT, CARD_THETA_UNIT],
@@ -398,6 +420,7 @@ impl AllegroProblem {
             joint_lo,
             joint_hi,
             dq_bound,
+            weights: Weights::of(task),
             goal_weights,
             pinned: pinned_object_coords(task, spec.mode),
             lift_off: vec![false; nf],
@@ -1003,6 +1026,7 @@ impl Problem for AllegroProblem {
         let h = self.horizon;
         let mut j = 0.0;
         let (wt, wr) = self.goal_weights;
+        let w = self.weights;
         for t in 0..h {
             let row = &x[t * n..(t + 1) * n];
             let prev: &[f64] = if t == 0 {
@@ -1015,21 +1039,22 @@ impl Problem for AllegroProblem {
             let mut dprev = [0.0; 15];
             {
                 let g = &mut grad[t * n..(t + 1) * n];
+                let (ws, wd, wo) = (w.joint_step, w.joint_delta, w.object_step);
                 for k in 0..nq {
                     let d = row[k] - prev[k];
-                    j += 10.0 * d * d;
-                    g[k] += 20.0 * d;
-                    dprev[k] = -20.0 * d;
+                    j += ws * d * d;
+                    g[k] += 2.0 * ws * d;
+                    dprev[k] = -2.0 * ws * d;
                     let dq = row[nq + 3 + k];
-                    j += 10.0 * dq * dq;
-                    g[nq + 3 + k] += 20.0 * dq;
+                    j += wd * dq * dq;
+                    g[nq + 3 + k] += 2.0 * wd * dq;
                 }
                 for k in 0..3 {
                     let u2 = self.units[k] * self.units[k];
                     let d = row[nq + k] - prev[nq + k];
-                    j += u2 * d * d;
-                    g[nq + k] += 2.0 * u2 * d;
-                    dprev[nq + k] = -2.0 * u2 * d;
+                    j += wo * u2 * d * d;
+                    g[nq + k] += 2.0 * wo * u2 * d;
+                    dprev[nq + k] = -2.0 * wo * u2 * d;
                     let e = row[nq + k] - self.goal[k];
                     j += u2 * w_goal * e * e;
                     g[nq + k] += 2.0 * u2 * w_goal * e;
@@ -1041,20 +1066,20 @@ impl Problem for AllegroProblem {
                 }
             }
             let g = &mut grad[t * n..(t + 1) * n];
-            if self.task == SceneKind::Screwdriver {
+            if w.upright != 0.0 {
                 for k in 0..2 {
                     let u2 = self.units[k] * self.units[k];
                     let a = row[nq + k];
-                    j += UPRIGHT_WEIGHT * u2 * a * a;
-                    g[nq + k] += 2.0 * UPRIGHT_WEIGHT * u2 * a;
+                    j += w.upright * u2 * a * a;
+                    g[nq + k] += 2.0 * w.upright * u2 * a;
                 }
             }
             // Finger forces.
             for s in 0..self.nc {
                 for k in 0..3 {
                     let f = row[self.force_col(s, k)];
-                    j += f * f;
-                    g[self.force_col(s, k)] += 2.0 * f;
+                    j += w.contact_force * f * f;
+                    g[self.force_col(s, k)] += 2.0 * w.contact_force * f;
                 }
             }
             // Regrasp targets.
@@ -1067,19 +1092,19 @@ impl Problem for AllegroProblem {
                 vals[4..].copy_from_slice(&row[nq..nq + 3]);
                 let v: [Dual<7>; 7] = seed(&vals);
                 let err = self.target_error(i, &[v[0], v[1], v[2], v[3]], &[v[4], v[5], v[6]]);
-                j += REGRASP_WEIGHT * err.v;
+                j += w.regrasp_target * err.v;
                 for k in 0..4 {
-                    g[4 * i + k] += REGRASP_WEIGHT * err.d[k];
+                    g[4 * i + k] += w.regrasp_target * err.d[k];
                 }
                 for k in 0..3 {
-                    g[nq + k] += REGRASP_WEIGHT * err.d[4 + k];
+                    g[nq + k] += w.regrasp_target * err.d[4 + k];
                 }
             }
         }
         for v in grad.iter_mut() {
-            *v *= COST_SCALE;
+            *v *= w.scale;
         }
-        COST_SCALE * j
+        w.scale * j
     }
 
     fn clamp(&self, x: &mut [f64]) {

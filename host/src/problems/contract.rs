@@ -33,17 +33,16 @@ pub enum LayoutError {
     },
 }
 
-/// Columns `(state, action)` of a contract row for `task`.
+/// Columns `(state, action)` of a contract row for `task` (the kernel's layout).
 pub fn contract_dims(task: SceneKind) -> (usize, usize) {
-    match task {
-        SceneKind::Screwdriver => (16, 21),
-        SceneKind::Card => (12, 17),
-    }
+    let d = task.task().dims();
+    (d.state_dim, d.action_dim)
 }
 
-/// Column of the first force column of task finger `i` in a contract row.
-fn contract_force_col(task: SceneKind, nf: usize, i: usize) -> usize {
-    contract_dims(task).0 + 4 * nf + 3 * i
+/// Column of the first force column of task finger `i` in a contract row (`i = nf`: the
+/// table force).
+fn contract_force_col(task: SceneKind, _nf: usize, i: usize) -> usize {
+    task.task().layout().force_col(i)
 }
 
 /// A task state `[q (4·nf), o (3)]` (metres and radians) in the contract layout: the joints,
@@ -165,7 +164,7 @@ mod tests {
     use dips_kernel::rng::KernelRng;
 
     fn problem(mode: Mode, yaw: f64) -> AllegroProblem {
-        let task = mode.task();
+        let task = SceneKind::from(mode.task());
         let q = task.default_joints();
         let mut start = Vec::new();
         for f in task.task_fingers() {
@@ -200,7 +199,7 @@ mod tests {
                 x[t * n + nq + 2] += 0.03 * (t as f64 + 1.0);
             }
             let c = to_contract(&p, &x);
-            let (dsc, duc) = contract_dims(mode.task());
+            let (dsc, duc) = contract_dims(mode.task().into());
             assert_eq!(c.len(), 6 * (dsc + duc));
             // Last row's action is zero; regrasping fingers' force columns are zero.
             assert!(c[5 * (dsc + duc) + dsc..].iter().all(|&v| v == 0.0));

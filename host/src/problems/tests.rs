@@ -21,7 +21,7 @@ fn start_state(task: SceneKind) -> Vec<f64> {
 }
 
 fn spec(mode: Mode, horizon: usize) -> ProblemSpec {
-    let task = mode.task();
+    let task = SceneKind::from(mode.task());
     ProblemSpec {
         task,
         mode,
@@ -187,7 +187,7 @@ fn open_loop_turn_solve_is_feasible_and_turns() {
     let p = AllegroProblem::new(&hand, &s).expect("valid spec");
     let mut rng = KernelRng::seed_from_u64(3);
     let mut parts = default_particles(&p, Mode::Turn, 8, &mut rng);
-    let rep = solve(&p, &mut parts, 100, &CsvtoSettings::default());
+    let rep = solve(&p, &mut parts, 100, &CsvtoSettings::default()).unwrap();
     let n = p.row_dim();
     let yaw_end = parts[0][11 * n + 14];
     assert!(rep.max_eq_violation[0] < 5e-3, "{rep:?}");
@@ -246,7 +246,7 @@ fn planner_geometry_matches_the_world_at_moved_object_poses() {
     let mut rng = KernelRng::seed_from_u64(11);
     for (mode, o) in cases {
         let p = AllegroProblem::new(&hand, &spec(mode, 2)).expect("valid spec");
-        let task = mode.task();
+        let task = SceneKind::from(mode.task());
         let mut world = World::new(task);
         for trial in 0..5 {
             let mut state = start_state(task);

@@ -11,6 +11,8 @@ pub mod format;
 pub mod model;
 pub mod ops;
 
+use core::fmt;
+
 /// Everything the interpreter can reject. No input makes it panic.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum NnError {
@@ -34,10 +36,12 @@ pub enum NnError {
     },
     /// The body or an op could not be decoded.
     Decode,
-    /// Op `index` references memory outside the arena or the weights, or its sizes disagree.
+    /// Op `index` cannot run: see its [`OpFault`].
     BadOp {
         /// Position in the op stream.
         index: u32,
+        /// What is wrong with it.
+        cause: OpFault,
     },
     /// The blob's inputs, output or metadata are inconsistent.
     BadLayout,
@@ -72,3 +76,78 @@ pub enum NnError {
     /// The call does not fit the model's role (e.g. `p_real` on a denoiser).
     WrongRole,
 }
+
+/// Why an op of a blob cannot run ([`NnError::BadOp`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum OpFault {
+    /// Its scratch need exceeds the blob's declared scratch (or overflows).
+    Scratch,
+    /// An operand lies outside the arena or the weights, or its output aliases an input
+    /// (found when the blob is parsed).
+    References,
+    /// At run time, an operand's region is out of range or overlaps the output.
+    Operand,
+    /// The op kernel refused its slices: their sizes disagree with the op's geometry.
+    Sizes,
+}
+
+impl fmt::Display for OpFault {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(match self {
+            Self::Scratch => "needs more scratch than the blob declares",
+            Self::References => {
+                "references memory outside the arena or weights, or aliases its output"
+            }
+            Self::Operand => "an operand region is out of range or overlaps the output",
+            Self::Sizes => "its slice sizes disagree with its geometry",
+        })
+    }
+}
+
+impl fmt::Display for NnError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match *self {
+            Self::Truncated => f.write_str("model blob is shorter than its header and checksum"),
+            Self::BadMagic => f.write_str("not a model blob (bad magic)"),
+            Self::UnsupportedVersion { found, supported } => write!(
+                f,
+                "model blob format version {found}, this interpreter reads {supported}"
+            ),
+            Self::ChecksumMismatch { stored, computed } => write!(
+                f,
+                "model blob checksum {stored:#010x} does not match its contents ({computed:#010x})"
+            ),
+            Self::Decode => f.write_str("model blob body or an op does not decode"),
+            Self::BadOp { index, cause } => write!(f, "op {index}: {cause}"),
+            Self::BadLayout => f.write_str("model inputs, output or metadata are inconsistent"),
+            Self::NonFiniteWeight { index } => write!(f, "weight {index} is not finite"),
+            Self::MemoryTooSmall { needed, given } => write!(
+                f,
+                "model memory has {given} floats, one sample needs {needed}"
+            ),
+            Self::BadBatch { batch, max } => {
+                write!(
+                    f,
+                    "batch {batch} is zero or above the {max} the memory holds"
+                )
+            }
+            Self::BadLength {
+                which,
+                given,
+                expected,
+            } => {
+                if usize::from(which) == format::MAX_INPUTS {
+                    write!(
+                        f,
+                        "output (or input count) has {given}, expected {expected}"
+                    )
+                } else {
+                    write!(f, "input {which} has {given} floats, expected {expected}")
+                }
+            }
+            Self::WrongRole => f.write_str("the call does not fit the model's role"),
+        }
+    }
+}
+
+impl core::error::Error for NnError {}

@@ -4,9 +4,9 @@
 //! activation; a value of `len` floats per sample at per-sample offset `off` occupies
 //! `[off·max_batch, (off+len)·max_batch)`, where `max_batch` is what the memory holds.
 
-use super::NnError;
 use super::format::{Body, Buf, CHECKSUM, Header, MAGIC, MAX_INPUTS, Op, Operand, W};
 use super::ops::{self, OpSizeError};
+use super::{NnError, OpFault};
 use crate::engine::ModelDims;
 
 /// Decoded facts of a validated blob, free of borrows so a host can keep it next to the bytes.
@@ -179,9 +179,17 @@ pub fn parse(blob: &[u8]) -> Result<ModelInfo, NnError> {
         let (op, r) = postcard::take_from_bytes::<Op>(rest).map_err(|_| NnError::Decode)?;
         rest = r;
         let index = count as u32;
-        let temp_ok = op_temp_len(&op).is_ok_and(|t| t <= temp_len);
-        if !temp_ok || !op_refs_ok(&op, arena, n_weights) {
-            return Err(NnError::BadOp { index });
+        if !op_temp_len(&op).is_ok_and(|t| t <= temp_len) {
+            return Err(NnError::BadOp {
+                index,
+                cause: OpFault::Scratch,
+            });
+        }
+        if !op_refs_ok(&op, arena, n_weights) {
+            return Err(NnError::BadOp {
+                index,
+                cause: OpFault::References,
+            });
         }
         count += 1;
     }
@@ -328,20 +336,20 @@ fn sample<'a>(s: &'a [f32], o: &Operand, i: usize) -> Option<&'a [f32]> {
 }
 
 /// Call `f` on each sample's input (`xl` floats of `src`) and output (`yl` floats of `dst`),
-/// in sample order; `None` as soon as a slice is out of range or `f` fails.
+/// in sample order; an error as soon as a slice is out of range or `f` fails.
 fn per_sample(
     src: &[f32],
     dst: &mut [f32],
     batch: usize,
     (xl, yl): (usize, usize),
-    mut f: impl FnMut(&[f32], &mut [f32]) -> Option<()>,
-) -> Option<()> {
+    mut f: impl FnMut(&[f32], &mut [f32]) -> Result<(), OpSizeError>,
+) -> Result<(), OpFault> {
     for i in 0..batch {
-        let xs = src.get(i * xl..(i + 1) * xl)?;
-        let ys = dst.get_mut(i * yl..(i + 1) * yl)?;
-        f(xs, ys)?;
+        let xs = src.get(i * xl..(i + 1) * xl).ok_or(OpFault::Operand)?;
+        let ys = dst.get_mut(i * yl..(i + 1) * yl).ok_or(OpFault::Operand)?;
+        f(xs, ys).map_err(|_| OpFault::Sizes)?;
     }
-    Some(())
+    Ok(())
 }
 
 fn exec(
@@ -351,12 +359,15 @@ fn exec(
     arena: &mut [f32],
     mb: usize,
     batch: usize,
-) -> Option<()> {
+) -> Result<(), OpFault> {
     let r = |b: &Buf| region(b, mb, batch);
     match op {
         Op::Conv1d { x, y, w, b, g } | Op::ConvTranspose1d { x, y, w, b, g } => {
-            let (src, dst) = split(arena, r(x), r(y))?;
-            let (w, b) = (weight_slice(weights, w)?, weight_slice(weights, b)?);
+            let (src, dst) = split(arena, r(x), r(y)).ok_or(OpFault::Operand)?;
+            let (w, b) = (
+                weight_slice(weights, w).ok_or(OpFault::Operand)?,
+                weight_slice(weights, b).ok_or(OpFault::Operand)?,
+            );
             let transposed = matches!(op, Op::ConvTranspose1d { .. });
             per_sample(
                 src,
@@ -365,9 +376,9 @@ fn exec(
                 (x.len as usize, y.len as usize),
                 |xs, ys| {
                     if transposed {
-                        ops::conv::conv_transpose1d(g, xs, ys, w, b, temp).ok()
+                        ops::conv::conv_transpose1d(g, xs, ys, w, b, temp)
                     } else {
-                        ops::conv::conv1d(g, xs, ys, w, b, temp).ok()
+                        ops::conv::conv1d(g, xs, ys, w, b, temp)
                     }
                 },
             )?;
@@ -381,11 +392,14 @@ fn exec(
             bias,
             ..
         } => {
-            let (src, dst) = split(arena, r(x), r(y))?;
-            let (sc, bi) = (weight_slice(weights, scale)?, weight_slice(weights, bias)?);
+            let (src, dst) = split(arena, r(x), r(y)).ok_or(OpFault::Operand)?;
+            let (sc, bi) = (
+                weight_slice(weights, scale).ok_or(OpFault::Operand)?,
+                weight_slice(weights, bias).ok_or(OpFault::Operand)?,
+            );
             let l = x.len as usize;
             per_sample(src, dst, batch, (l, l), |xs, ys| {
-                ops::norm::instance_norm(xs, ys, *len as usize, *eps, sc, bi).ok()
+                ops::norm::instance_norm(xs, ys, *len as usize, *eps, sc, bi)
             })?;
         }
         Op::GroupNorm {
@@ -399,8 +413,11 @@ fn exec(
             mish,
             ..
         } => {
-            let (src, dst) = split(arena, r(x), r(y))?;
-            let (ga, be) = (weight_slice(weights, gamma)?, weight_slice(weights, beta)?);
+            let (src, dst) = split(arena, r(x), r(y)).ok_or(OpFault::Operand)?;
+            let (ga, be) = (
+                weight_slice(weights, gamma).ok_or(OpFault::Operand)?,
+                weight_slice(weights, beta).ok_or(OpFault::Operand)?,
+            );
             let l = x.len as usize;
             per_sample(src, dst, batch, (l, l), |xs, ys| {
                 ops::norm::group_norm(
@@ -413,12 +430,11 @@ fn exec(
                     be,
                     *mish,
                 )
-                .ok()
             })?;
         }
         Op::Unary { x, y, f } => {
-            let (src, dst) = split(arena, r(x), r(y))?;
-            ops::elementwise::unary(*f, src, dst).ok()?;
+            let (src, dst) = split(arena, r(x), r(y)).ok_or(OpFault::Operand)?;
+            ops::elementwise::unary(*f, src, dst).map_err(|_| OpFault::Sizes)?;
         }
         Op::Binary {
             a,
@@ -429,35 +445,36 @@ fn exec(
             sa,
             sb,
         } => {
-            let ([sa_, sb_], dst) = split2(arena, weights, *a, *b, (mb, batch), r(y))?;
+            let ([sa_, sb_], dst) =
+                split2(arena, weights, *a, *b, (mb, batch), r(y)).ok_or(OpFault::Operand)?;
             let yl = y.len as usize;
             for i in 0..batch {
-                let ys = dst.get_mut(i * yl..(i + 1) * yl)?;
+                let ys = dst.get_mut(i * yl..(i + 1) * yl).ok_or(OpFault::Operand)?;
                 ops::elementwise::binary(
                     *f,
-                    sample(sa_, a, i)?,
-                    sample(sb_, b, i)?,
+                    sample(sa_, a, i).ok_or(OpFault::Operand)?,
+                    sample(sb_, b, i).ok_or(OpFault::Operand)?,
                     ys,
                     dims,
                     sa,
                     sb,
                 )
-                .ok()?;
+                .map_err(|_| OpFault::Sizes)?;
             }
         }
         Op::Gemm {
             a, y, w, b, k, n, ..
         } => {
-            let (src, dst) = split(arena, r(a), r(y))?;
+            let (src, dst) = split(arena, r(a), r(y)).ok_or(OpFault::Operand)?;
             ops::gemm::gemm(
                 src,
-                weight_slice(weights, w)?,
-                weight_slice(weights, b)?,
+                weight_slice(weights, w).ok_or(OpFault::Operand)?,
+                weight_slice(weights, b).ok_or(OpFault::Operand)?,
                 dst,
                 *k as usize,
                 *n as usize,
             )
-            .ok()?;
+            .map_err(|_| OpFault::Sizes)?;
         }
         Op::Copy {
             x,
@@ -469,12 +486,13 @@ fn exec(
             ys,
         } => {
             let dummy = Operand::Weight(W { off: 0, len: 0 });
-            let ([src, _], dst) = split2(arena, weights, *x, dummy, (mb, batch), r(y))?;
+            let ([src, _], dst) =
+                split2(arena, weights, *x, dummy, (mb, batch), r(y)).ok_or(OpFault::Operand)?;
             let yl = y.len as usize;
             for i in 0..batch {
-                let yd = dst.get_mut(i * yl..(i + 1) * yl)?;
+                let yd = dst.get_mut(i * yl..(i + 1) * yl).ok_or(OpFault::Operand)?;
                 ops::layout::strided_copy(
-                    sample(src, x, i)?,
+                    sample(src, x, i).ok_or(OpFault::Operand)?,
                     yd,
                     dims,
                     *x_off as usize,
@@ -482,12 +500,12 @@ fn exec(
                     *y_off as usize,
                     ys,
                 )
-                .ok()?;
+                .map_err(|_| OpFault::Sizes)?;
             }
         }
         Op::Fill { y, value } => {
             let (s, e) = r(y);
-            arena.get_mut(s..e)?.fill(*value);
+            arena.get_mut(s..e).ok_or(OpFault::Operand)?.fill(*value);
         }
         Op::ReduceMean {
             x,
@@ -496,7 +514,7 @@ fn exec(
             len,
             inner,
         } => {
-            let (src, dst) = split(arena, r(x), r(y))?;
+            let (src, dst) = split(arena, r(x), r(y)).ok_or(OpFault::Operand)?;
             per_sample(
                 src,
                 dst,
@@ -504,12 +522,11 @@ fn exec(
                 (x.len as usize, y.len as usize),
                 |xs, ys| {
                     ops::norm::reduce_mean(xs, ys, *outer as usize, *len as usize, *inner as usize)
-                        .ok()
                 },
             )?;
         }
     }
-    Some(())
+    Ok(())
 }
 
 /// Run the model on `batch` samples. `mem` is memory that [`install`] filled; `inputs` are the
@@ -566,7 +583,8 @@ pub fn run(
     while !ops_bytes.is_empty() {
         let (op, r) = postcard::take_from_bytes::<Op>(ops_bytes).map_err(|_| NnError::Decode)?;
         ops_bytes = r;
-        exec(&op, weights, temp, arena, mb, batch).ok_or(NnError::BadOp { index })?;
+        exec(&op, weights, temp, arena, mb, batch)
+            .map_err(|cause| NnError::BadOp { index, cause })?;
         index += 1;
     }
     output.copy_from_slice(arena.get(os..oe).ok_or(NnError::BadLayout)?);
@@ -719,14 +737,29 @@ mod tests {
             n: 1,
         };
         let out_of_range = with(2, tanh(buf(6, 1), buf(8, 1)));
-        assert_eq!(parse(&out_of_range), Err(NnError::BadOp { index: 2 }));
+        assert_eq!(
+            parse(&out_of_range),
+            Err(NnError::BadOp {
+                index: 2,
+                cause: OpFault::References
+            })
+        );
         let weights_out_of_range = with(0, gemm(6, 4));
         assert_eq!(
             parse(&weights_out_of_range),
-            Err(NnError::BadOp { index: 0 })
+            Err(NnError::BadOp {
+                index: 0,
+                cause: OpFault::References
+            })
         );
         let aliased = with(2, tanh(buf(6, 1), buf(6, 1)));
-        assert_eq!(parse(&aliased), Err(NnError::BadOp { index: 2 }));
+        assert_eq!(
+            parse(&aliased),
+            Err(NnError::BadOp {
+                index: 2,
+                cause: OpFault::References
+            })
+        );
         // Inconsistent sizes inside an op pass the reference checks but fail when run.
         let b = with(0, gemm(0, 3));
         let info = parse(&b).unwrap();
@@ -735,7 +768,10 @@ mod tests {
         let mut out = [0.0];
         assert_eq!(
             run(&info, &b, &mut mem, 1, &[&[0.0; 4], &[0.0]], &mut out),
-            Err(NnError::BadOp { index: 0 })
+            Err(NnError::BadOp {
+                index: 0,
+                cause: OpFault::Sizes
+            })
         );
     }
 }

@@ -2,6 +2,8 @@
 
 use core::fmt;
 
+use crate::mode::Task;
+
 /// The longest mode sequence a plan can hold (beyond an executed root mode).
 pub const MAX_PLAN_LEN: usize = 16;
 
@@ -86,6 +88,15 @@ impl SearchConfig {
         }
     }
 
+    /// The paper's settings of `task`, the one place each task's search settings come from:
+    /// the screwdriver's [`SearchConfig::default`], the card's [`SearchConfig::card`].
+    pub fn for_task(task: Task) -> Self {
+        match task {
+            Task::Screwdriver => Self::default(),
+            Task::Card => Self::card(),
+        }
+    }
+
     /// Check every field; the first bad one is named.
     pub fn validate(&self) -> Result<(), ConfigError> {
         if self.k == 0 {
@@ -154,6 +165,9 @@ mod tests {
         assert_eq!((c.gamma, c.alpha, c.beta, c.p_min), (0.9, 1e4, 1e3, 0.1));
         assert_eq!(c.validate(), Ok(()));
         assert_eq!(SearchConfig::card().validate(), Ok(()));
+        assert_eq!(SearchConfig::for_task(Task::Screwdriver), c);
+        let card = SearchConfig::for_task(Task::Card);
+        assert_eq!((card.alpha, card.beta, card.max_depth), (1e5, 0.0, 5));
     }
 
     #[test]

@@ -1,0 +1,133 @@
+//! The host's planning session: the two models loaded from `.onnx` files (run by tract or by
+//! the kernel interpreter) and planned through the kernel's session builder
+//! ([`dips_kernel::session`]), which `dips plan`, the tests and the DIPS loop share with the
+//! firmware.
+//!
+//! A [`Session`] keeps its models, planner and work area across calls, so a replanning loop
+//! builds it once and calls [`Session::plan`] with a new [`PlanSpec`] (start, goal, executed
+//! mode, seed) each time.
+
+use std::path::Path;
+use std::time::Instant;
+
+use anyhow::{Context, bail};
+use dips_kernel::budget::Clock;
+use dips_kernel::engine::DenoiserEngine;
+use dips_kernel::mode::Task;
+use dips_kernel::search::{PaperPlanner, Planner, SearchReport};
+use dips_kernel::session::{PlanSpec, SessionError, SessionLayout, plan_with_engines};
+use dips_onnx::{AnyEngine, EngineKind, Expectation, Role};
+
+/// `std::time::Instant` as the kernel's clock (microseconds since `self.0`).
+#[derive(Debug, Clone, Copy)]
+pub struct StdClock(pub Instant);
+
+impl StdClock {
+    /// A clock starting now.
+    pub fn start() -> Self {
+        Self(Instant::now())
+    }
+}
+
+impl Clock for StdClock {
+    fn now_us(&mut self) -> u64 {
+        u64::try_from(self.0.elapsed().as_micros()).unwrap_or(u64::MAX)
+    }
+}
+
+/// The file name of a model role in a models directory.
+pub fn model_file(role: Role) -> &'static str {
+    match role {
+        Role::Denoiser => "denoiser.onnx",
+        Role::Discriminator => "discriminator.onnx",
+    }
+}
+
+/// A task's denoiser and discriminator, checked against the task's contract.
+#[derive(Debug)]
+pub struct Models {
+    /// The denoiser `M(c, s₀)`.
+    pub denoiser: AnyEngine,
+    /// The discriminator `Ψ`.
+    pub discriminator: AnyEngine,
+}
+
+impl Models {
+    /// Load `denoiser.onnx` and `discriminator.onnx` from `dir` for `task` with `kind`.
+    pub fn load(kind: EngineKind, dir: &Path, task: Task) -> anyhow::Result<Self> {
+        Ok(Self {
+            denoiser: load_model(kind, dir, Role::Denoiser, task)?,
+            discriminator: load_model(kind, dir, Role::Discriminator, task)?,
+        })
+    }
+}
+
+fn load_model(kind: EngineKind, dir: &Path, role: Role, task: Task) -> anyhow::Result<AnyEngine> {
+    let file = dir.join(model_file(role));
+    if !file.is_file() {
+        bail!("no {role:?} model at {}", file.display());
+    }
+    AnyEngine::load(kind, &file, &Expectation::new(role, task.name()))
+        .with_context(|| format!("loading {}", file.display()))
+}
+
+/// A planning session over loaded models: planner (capacities `K, N, O, S`, by default the
+/// [`PaperPlanner`]'s) and adapter work area, kept across calls.
+#[derive(Debug)]
+pub struct Session<
+    const K: usize = 16,
+    const N: usize = 512,
+    const O: usize = 256,
+    const S: usize = 481,
+> {
+    models: Models,
+    planner: Box<Planner<K, N, O, S>>,
+    work: Vec<f32>,
+}
+
+/// The session with the paper's capacities.
+pub type PaperSession = Session<16, 512, 256, 481>;
+
+const _: () = assert!(
+    std::mem::size_of::<PaperSession>() > 0
+        && std::mem::size_of::<Planner<16, 512, 256, 481>>() == std::mem::size_of::<PaperPlanner>()
+);
+
+impl<const K: usize, const N: usize, const O: usize, const S: usize> Session<K, N, O, S> {
+    /// A session over `models`.
+    pub fn new(models: Models) -> Self {
+        Self {
+            models,
+            planner: Box::new(Planner::new()),
+            work: Vec::new(),
+        }
+    }
+
+    /// The models.
+    pub fn models_mut(&mut self) -> &mut Models {
+        &mut self.models
+    }
+
+    /// Plan `spec` (engines → adapters → planner, [`plan_with_engines`]); every engine call
+    /// takes a whole sampler batch.
+    pub fn plan(
+        &mut self,
+        spec: &PlanSpec,
+        clock: &mut impl Clock,
+    ) -> Result<SearchReport, SessionError> {
+        let dims = DenoiserEngine::dims(&self.models.denoiser);
+        let segments = spec.segments_per_call();
+        let layout = SessionLayout::new(dims, segments, segments);
+        self.work.clear();
+        self.work.resize(layout.total(), 0.0);
+        plan_with_engines(
+            &mut self.planner,
+            spec,
+            &mut self.models.denoiser,
+            &mut self.models.discriminator,
+            &layout,
+            &mut self.work,
+            clock,
+        )
+    }
+}
