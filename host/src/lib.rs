@@ -1,7 +1,6 @@
 //! `dips-host`: the std side of DIPS.
 
 pub mod atomic_write;
-pub mod cli;
 pub mod csvto;
 pub mod execute;
 pub mod geometry;

@@ -12,13 +12,13 @@ use clap::Args;
 use dips_kernel::rng::KernelRng;
 use serde_json::json;
 
-use crate::csvto::{Problem, solve};
-use crate::execute::{ExecSettings, mode_goal};
-use crate::kinematics::HandModel;
-use crate::problems::init::default_particles;
-use crate::problems::{AllegroProblem, Mode, ProblemSpec};
-use crate::scenes::SceneKind;
-use crate::world::World;
+use dips_host::csvto::{Problem, solve};
+use dips_host::execute::{ExecSettings, mode_goal};
+use dips_host::kinematics::HandModel;
+use dips_host::problems::init::default_particles;
+use dips_host::problems::{AllegroProblem, Mode, ProblemSpec};
+use dips_host::scenes::SceneKind;
+use dips_host::world::World;
 
 /// `dips bench csvto`.
 #[derive(Debug, Args)]

@@ -6,10 +6,12 @@ pub mod bench;
 pub mod bench_csvto;
 pub mod bench_inference;
 pub mod bench_sim;
+pub mod datagen;
 pub mod episode;
 pub mod model;
 pub mod plan;
 pub mod sim;
+pub mod train;
 
 /// DIPS: diffusion-informed probabilistic contact search for multi-finger manipulation.
 #[derive(Debug, Parser)]
@@ -33,6 +35,10 @@ pub enum Command {
     Episode(episode::EpisodeArgs),
     /// One A* planning call from the task's start state with the diffusion models.
     Plan(plan::PlanArgs),
+    /// Generate a dataset: CSVTO demos driven by the task's prior (resumable, sharded).
+    Datagen(datagen::DatagenArgs),
+    /// Train the denoiser and the discriminator on a dataset; export them as ONNX.
+    Train(train::TrainArgs),
 }
 
 /// Parse the process arguments and run the command.
@@ -44,5 +50,7 @@ pub fn main() -> anyhow::Result<()> {
         Command::Sim(args) => sim::main(args),
         Command::Episode(args) => episode::run(args),
         Command::Plan(args) => plan::run(args),
+        Command::Datagen(args) => datagen::run(args),
+        Command::Train(args) => train::run(args),
     }
 }

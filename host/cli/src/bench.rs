@@ -14,7 +14,7 @@ use dips_kernel::search::{PaperPlanner, SearchConfig, SearchStats, SegmentSample
 use dips_kernel::session::{PlanSpec, plan_with_adapters};
 use dips_kernel::task::{CardObjective, Objective, ScrewdriverObjective};
 
-use crate::planning::StdClock;
+use dips_host::planning::StdClock;
 use serde_json::json;
 use std::time::{Duration, Instant};
 

@@ -5,10 +5,10 @@ use std::path::PathBuf;
 use anyhow::{Context, bail};
 use clap::Args;
 
-use crate::execute::{ExecSettings, prior_sequence_for_seed, run_episode};
-use crate::problems::Mode;
-use crate::problems::mode::parse_mode;
-use crate::scenes::SceneKind;
+use dips_host::execute::{ExecSettings, prior_sequence_for_seed, run_episode};
+use dips_host::problems::Mode;
+use dips_host::problems::mode::parse_mode;
+use dips_host::scenes::SceneKind;
 
 /// Arguments of `dips episode`.
 #[derive(Debug, Args)]

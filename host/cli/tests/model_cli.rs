@@ -5,7 +5,7 @@ use std::process::Command;
 
 fn fixture(file: &str) -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .join("../onnx/tests/fixtures/torch-card-dynamo")
+        .join("../../onnx/tests/fixtures/torch-card-dynamo")
         .join(file)
 }
 

@@ -5,7 +5,7 @@ use std::process::Command;
 
 fn fixtures(dir: &str) -> String {
     format!(
-        "{}/../onnx/tests/fixtures/{dir}",
+        "{}/../../onnx/tests/fixtures/{dir}",
         env!("CARGO_MANIFEST_DIR")
     )
 }

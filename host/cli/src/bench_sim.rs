@@ -2,7 +2,7 @@
 
 use clap::{Args, ValueEnum};
 
-use crate::world::bench::{self, ContactModel};
+use dips_host::world::bench::{self, ContactModel};
 
 /// The contact model to time.
 #[derive(Debug, Clone, Copy, ValueEnum)]

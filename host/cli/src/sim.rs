@@ -18,11 +18,11 @@ use std::path::{Path, PathBuf};
 use clap::{Args, Subcommand};
 use serde::{Deserialize, Serialize};
 
-use crate::hand::Recorder;
-use crate::kinematics::HandModel;
-use crate::render;
-use crate::scenes::SceneKind;
-use crate::world::{ContactReport, StepFlag, World, WorldError, WorldParams};
+use dips_host::hand::Recorder;
+use dips_host::kinematics::HandModel;
+use dips_host::render;
+use dips_host::scenes::SceneKind;
+use dips_host::world::{ContactReport, StepFlag, World, WorldError, WorldParams};
 
 /// `dips sim` arguments.
 #[derive(Debug, Args)]
@@ -188,8 +188,8 @@ pub fn task_metric(scene: SceneKind, start: &[f64], state: &[f64]) -> f64 {
     match scene {
         SceneKind::Screwdriver => state[a + 2],
         SceneKind::Card => {
-            let goal = crate::scenes::card::goal_from_start(start[a], start[a + 1]);
-            crate::scenes::card::distance_to_goal(state[a], state[a + 1], goal)
+            let goal = dips_host::scenes::card::goal_from_start(start[a], start[a + 1]);
+            dips_host::scenes::card::distance_to_goal(state[a], state[a + 1], goal)
         }
     }
 }
@@ -267,7 +267,7 @@ fn write_json<T: Serialize>(path: &Path, value: &T) -> Result<(), SimCliError> {
         path: path.display().to_string(),
         message: e.to_string(),
     })?;
-    crate::atomic_write::write_atomic(path, text.as_bytes()).map_err(|source| SimCliError::Io {
+    dips_host::atomic_write::write_atomic(path, text.as_bytes()).map_err(|source| SimCliError::Io {
         path: path.display().to_string(),
         source,
     })
@@ -315,7 +315,7 @@ fn run(args: &RunArgs) -> Result<(), SimCliError> {
                         traj.max_penetration.push(rep.max_penetration);
                         traj.flags.push(rep.flags);
                     }
-                    Err(crate::hand::HandError::World(e)) => {
+                    Err(dips_host::hand::HandError::World(e)) => {
                         traj.error = Some(format!("action {k}: {e}"));
                         failure = Some((k, e));
                         break;

@@ -1,5 +1,5 @@
 //! The `dips` binary.
 
 fn main() -> anyhow::Result<()> {
-    dips_host::cli::main()
+    dips_cli::main()
 }

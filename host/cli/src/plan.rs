@@ -4,7 +4,7 @@
 //! v1, checked against the task) and run by the kernel's interpreter (default) or tract. The
 //! search is the kernel's `PaperPlanner` with the paper's settings unless flags change them,
 //! the prior is the paper's (`MarkovPrior::paper`), and the start state is the world's. The
-//! wiring is the shared planning session ([`crate::planning::Session`]).
+//! wiring is the shared planning session ([`dips_host::planning::Session`]).
 
 use std::path::PathBuf;
 use std::time::Instant;
@@ -18,10 +18,10 @@ use dips_kernel::session::PlanSpec;
 use dips_onnx::EngineKind;
 use serde_json::json;
 
-use crate::planning::{Models, PaperSession, StdClock};
-use crate::problems::contract::contract_state;
-use crate::scenes::SceneKind;
-use crate::world::World;
+use dips_host::planning::{Models, PaperSession, StdClock};
+use dips_host::problems::contract::contract_state;
+use dips_host::scenes::SceneKind;
+use dips_host::world::World;
 
 /// Which engine runs the models.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]

@@ -1,0 +1,87 @@
+//! `dips train`: the denoiser and the discriminator of a task, trained on a dataset with burn
+//! and exported under contract v1 (`docs/training.md`).
+
+use std::path::PathBuf;
+
+use anyhow::Context;
+use clap::Args;
+use dips_kernel::mode::Task;
+use dips_train::{RunOptions, TrainSettings};
+
+/// `dips train` arguments.
+#[derive(Debug, Args)]
+pub struct TrainArgs {
+    /// Task: screwdriver or card.
+    #[arg(long)]
+    pub task: String,
+    /// Dataset directory (from `dips datagen`).
+    #[arg(long)]
+    pub data: PathBuf,
+    /// Model directory: denoiser.onnx, discriminator.onnx, train_report.json, checkpoints/.
+    /// A run with a checkpoint there resumes.
+    #[arg(long)]
+    pub out: PathBuf,
+    /// Settings as JSON (the `settings` object of a train_report.json); flags override it.
+    #[arg(long)]
+    pub settings: Option<PathBuf>,
+    /// Seed of the initialisation, data order, masks and noise.
+    #[arg(long)]
+    pub seed: Option<u64>,
+    /// Denoiser optimiser steps.
+    #[arg(long)]
+    pub steps: Option<usize>,
+    /// Discriminator optimiser steps.
+    #[arg(long)]
+    pub disc_steps: Option<usize>,
+    /// Channel widths of the U-Net stages, e.g. 32,64,128.
+    #[arg(long, value_delimiter = ',')]
+    pub widths: Option<Vec<usize>>,
+    /// Denoiser batch size.
+    #[arg(long)]
+    pub batch: Option<usize>,
+    /// Start over even when a checkpoint exists.
+    #[arg(long)]
+    pub fresh: bool,
+    /// No progress bars.
+    #[arg(long)]
+    pub quiet: bool,
+}
+
+/// Run `dips train`.
+pub fn run(args: TrainArgs) -> anyhow::Result<()> {
+    let task = Task::from_name(&args.task).map_err(|_| {
+        anyhow::anyhow!("unknown task {:?}; available: screwdriver, card", args.task)
+    })?;
+    let mut settings = match &args.settings {
+        Some(p) => {
+            let text = std::fs::read_to_string(p)
+                .with_context(|| format!("cannot read settings file {}", p.display()))?;
+            serde_json::from_str::<TrainSettings>(&text)
+                .with_context(|| format!("settings file {} is not valid", p.display()))?
+        }
+        None => TrainSettings::default(),
+    };
+    if let Some(s) = args.seed {
+        settings.seed = s;
+    }
+    if let Some(s) = args.steps {
+        settings.denoiser.steps = s;
+    }
+    if let Some(s) = args.disc_steps {
+        settings.discriminator.steps = s;
+    }
+    if let Some(w) = args.widths {
+        settings.net.widths = w;
+    }
+    if let Some(b) = args.batch {
+        settings.denoiser.batch = b;
+    }
+    let opts = RunOptions {
+        progress: !args.quiet,
+        stop_after: None,
+        fresh: args.fresh,
+    };
+    let report = dips_train::run(task, &args.data, &args.out, &settings, &opts)?;
+    println!("{}", serde_json::to_string_pretty(&report)?);
+    Ok(())
+}
