@@ -16,28 +16,8 @@ fn world(scene: SceneKind, opt: &dyn Fn(&mut WorldParams)) -> World {
     opt(&mut p);
     World::with_model(scene, HandModel::allegro_v4(), p).unwrap()
 }
-fn tip_contacts(w: &World) -> Vec<(Finger, f64, Vector3<f64>)> {
-    let tips = w.tip_centers();
-    let r = w.hand_model().tip_radius;
-    let pose = w.object().pose();
-    w.scene()
-        .task_fingers()
-        .iter()
-        .map(|f| {
-            let k = w
-                .object_body()
-                .sphere_contact(&pose, &tips[f.index()], r, f64::INFINITY)
-                .unwrap();
-            (*f, k.phi, k.normal)
-        })
-        .collect()
-}
 fn back_off(w: &mut World, gap: f64) {
-    let moves: Vec<_> = tip_contacts(w)
-        .into_iter()
-        .map(|(f, phi, n)| (f, n * (gap - phi)))
-        .collect();
-    let dq = scripted::tip_moves_to_action(w, &moves);
+    let dq = scripted::back_off_action(w, gap);
     w.step_action(&dq).unwrap();
 }
 fn graze(opt: &dyn Fn(&mut WorldParams), gap: f64) -> f64 {

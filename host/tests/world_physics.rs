@@ -317,34 +317,11 @@ fn index_sliding_off_the_cap_tilts_the_screwdriver_under_the_cone_only() {
     assert!(staggered < 1e-4, "{staggered}");
 }
 
-/// Each task fingertip's contact with the object at the start: (signed distance, outward
-/// normal of the object at the closest point).
-fn tip_contacts(w: &World) -> Vec<(Finger, f64, Vector3<f64>)> {
-    let tips = w.tip_centers();
-    let r = w.hand_model().tip_radius;
-    let pose = w.object().pose();
-    w.scene()
-        .task_fingers()
-        .iter()
-        .map(|f| {
-            let k = w
-                .object_body()
-                .sphere_contact(&pose, &tips[f.index()], r, f64::INFINITY)
-                .expect("the object has parts");
-            (*f, k.phi, k.normal)
-        })
-        .collect()
-}
-
 /// Move every task fingertip along its contact normal until it is `gap` clear of the object.
 fn back_off(w: &mut World, gap: f64) {
-    let moves: Vec<(Finger, Vector3<f64>)> = tip_contacts(w)
-        .into_iter()
-        .map(|(f, phi, n)| (f, n * (gap - phi)))
-        .collect();
-    let dq = tip_action(w, &moves);
+    let dq = scripted::back_off_action(w, gap);
     step(w, &dq);
-    for (f, phi, _) in tip_contacts(w) {
+    for (f, phi, _) in scripted::tip_contacts(w) {
         assert!(
             (phi - gap).abs() < 0.5e-3,
             "{f:?} is {phi} m from the object after backing off to {gap}"
@@ -380,7 +357,7 @@ fn grazing_fingers_do_not_turn_the_screwdriver() {
             for (k, (now, before)) in w.tip_centers().iter().zip(&tips).enumerate() {
                 travelled[k] += (now - before).norm();
             }
-            for (f, phi, _) in tip_contacts(&w) {
+            for (f, phi, _) in scripted::tip_contacts(&w) {
                 assert!(phi > 0.0, "{f:?} touched the object ({phi} m) at gap {gap}");
             }
         }

@@ -49,3 +49,32 @@ pub fn card_push_action(world: &World, dy: f64, press: f64) -> Vec<f64> {
     let dp = Vector3::new(0.0, dy, -press);
     tip_moves_to_action(world, &[(Finger::Index, dp), (Finger::Middle, dp)])
 }
+
+/// Each task fingertip's closest contact with the object: (finger, signed distance, outward
+/// normal of the object at the closest point), in task order.
+pub fn tip_contacts(world: &World) -> Vec<(Finger, f64, Vector3<f64>)> {
+    let tips = world.tip_centers();
+    let r = world.hand_model().tip_radius;
+    let pose = world.object().pose();
+    world
+        .scene()
+        .task_fingers()
+        .iter()
+        .filter_map(|f| {
+            world
+                .object_body()
+                .sphere_contact(&pose, &tips[f.index()], r, f64::INFINITY)
+                .map(|k| (*f, k.phi, k.normal))
+        })
+        .collect()
+}
+
+/// The action that moves every task fingertip along its contact normal until it is `gap`
+/// clear of the object (the start of the graze probes in `docs/world.md`).
+pub fn back_off_action(world: &World, gap: f64) -> Vec<f64> {
+    let moves: Vec<(Finger, Vector3<f64>)> = tip_contacts(world)
+        .into_iter()
+        .map(|(f, phi, n)| (f, n * (gap - phi)))
+        .collect();
+    tip_moves_to_action(world, &moves)
+}
