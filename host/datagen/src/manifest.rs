@@ -55,8 +55,7 @@ fn median(mut v: Vec<f64>) -> Option<f64> {
 /// Read every demo of `dir` (checking each), write `dir/manifest.json` atomically and return
 /// it. Two demos with one seed (two shards that overlapped) are an error naming both files.
 pub fn index(dir: &Path, task: SceneKind) -> Result<Manifest, DatagenError> {
-    let kernel_task = dips_kernel::mode::Task::from_name(task.name())
-        .map_err(|_| DatagenError::Settings(format!("task {}", task.name())))?;
+    let kernel_task = task.task();
     let files = demo_files(dir)?;
     let dims = kernel_task.dims();
     let mut seeds = Vec::with_capacity(files.len());

@@ -160,10 +160,8 @@ pub fn record_demo(
         "exec_settings".to_string(),
         serde_json::to_string(settings).unwrap_or_default(),
     );
-    let kernel_task = dips_kernel::mode::Task::from_name(task.name())
-        .expect("the host's scenes are the kernel's tasks");
     let record = DemoRecord {
-        task: kernel_task,
+        task: task.task(),
         seed,
         modes: modes.iter().map(|m| m.name().to_string()).collect(),
         trajectories: rec.trajectories,

@@ -138,8 +138,7 @@ pub fn generate(settings: &DatagenSettings, dir: &Path) -> Result<DatagenReport,
         path: demos_dir.clone(),
         source,
     })?;
-    let kernel_task = dips_kernel::mode::Task::from_name(settings.task.name())
-        .map_err(|_| DatagenError::Settings(format!("task {}", settings.task.name())))?;
+    let kernel_task = settings.task.task();
     let seeds = settings.shard.seeds(settings.first_seed, settings.demos);
     let mut pending = Vec::new();
     for &seed in &seeds {
