@@ -7,13 +7,14 @@
 //! builds it once and calls [`Session::plan`] with a new [`PlanSpec`] (start, goal, executed
 //! mode, seed) each time.
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use anyhow::{Context, bail};
 use dips_kernel::budget::Clock;
 use dips_kernel::engine::DenoiserEngine;
 use dips_kernel::mode::Task;
+use dips_kernel::prior::MarkovPrior;
 use dips_kernel::search::{PaperPlanner, Planner, SearchReport};
 use dips_kernel::session::{PlanSpec, SessionError, SessionLayout, plan_with_engines};
 use dips_onnx::{AnyEngine, EngineKind, Expectation, Role};
@@ -43,21 +44,78 @@ pub fn model_file(role: Role) -> &'static str {
     }
 }
 
-/// A task's denoiser and discriminator, checked against the task's contract.
+/// The file name of the fitted contact-mode prior in a models directory.
+pub const PRIOR_FILE: &str = "prior.json";
+
+/// The environment variable naming a directory with one models directory per task.
+pub const MODELS_ENV: &str = "DIPS_MODELS";
+
+/// The shipped models' directory (`onnx/models`) in the repository this binary was built from.
+const REPO_MODELS: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../onnx/models");
+
+/// The models directory of `task` when none is given: `$DIPS_MODELS/<task>` when the variable
+/// is set, else `onnx/models/<task>` under the current directory, else the shipped models of the
+/// repository this binary was built from. The error lists what was tried.
+pub fn default_models_dir(task: Task) -> anyhow::Result<PathBuf> {
+    let mut tried = Vec::new();
+    if let Some(root) = std::env::var_os(MODELS_ENV) {
+        let dir = PathBuf::from(root).join(task.name());
+        if dir.is_dir() {
+            return Ok(dir);
+        }
+        bail!(
+            "${MODELS_ENV} is set but {} is not a directory (unset it to use the shipped models)",
+            dir.display()
+        );
+    }
+    for root in [PathBuf::from("onnx/models"), PathBuf::from(REPO_MODELS)] {
+        let dir = root.join(task.name());
+        if dir.join(model_file(Role::Denoiser)).is_file() {
+            return Ok(dir);
+        }
+        tried.push(dir.display().to_string());
+    }
+    bail!(
+        "no {} models found (tried {}); pass --models DIR or set ${MODELS_ENV}",
+        task.name(),
+        tried.join(", ")
+    )
+}
+
+/// A task's denoiser and discriminator, checked against the task's contract, and the prior
+/// fitted with them when the directory has one.
 #[derive(Debug)]
 pub struct Models {
     /// The denoiser `M(c, s₀)`.
     pub denoiser: AnyEngine,
     /// The discriminator `Ψ`.
     pub discriminator: AnyEngine,
+    /// The prior of `prior.json` (fitted from the training data), `None` when the directory
+    /// has none.
+    pub prior: Option<MarkovPrior>,
+    /// The directory they were loaded from.
+    pub dir: PathBuf,
 }
 
 impl Models {
-    /// Load `denoiser.onnx` and `discriminator.onnx` from `dir` for `task` with `kind`.
+    /// Load `denoiser.onnx`, `discriminator.onnx` and, when present, `prior.json` from `dir`
+    /// for `task` with `kind`.
     pub fn load(kind: EngineKind, dir: &Path, task: Task) -> anyhow::Result<Self> {
+        let prior_path = dir.join(PRIOR_FILE);
+        let prior = if prior_path.is_file() {
+            Some(
+                dips_dataset::PriorFile::load(&prior_path, task)
+                    .map(|(_, p)| p)
+                    .with_context(|| format!("loading {}", prior_path.display()))?,
+            )
+        } else {
+            None
+        };
         Ok(Self {
             denoiser: load_model(kind, dir, Role::Denoiser, task)?,
             discriminator: load_model(kind, dir, Role::Discriminator, task)?,
+            prior,
+            dir: dir.to_path_buf(),
         })
     }
 }

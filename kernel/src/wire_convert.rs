@@ -435,6 +435,7 @@ pub fn sampler_from_settings(settings: &SamplerSettings) -> Result<SamplerConfig
     Ok(SamplerConfig {
         method,
         guidance_weight: settings.guidance_weight,
+        ..SamplerConfig::default()
     })
 }
 

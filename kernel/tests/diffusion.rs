@@ -51,6 +51,8 @@ struct GaussianDenoiser {
     alpha_bar: Vec<f64>,
     max_batch: usize,
     branch: Branch,
+    /// Multiplies every prediction: 1 is the exact predictor, 0 a network that learned nothing.
+    eps_scale: f32,
     record: bool,
     calls: Vec<Call>,
 }
@@ -77,6 +79,7 @@ impl GaussianDenoiser {
             alpha_bar: alpha_bars(STEPS),
             max_batch: usize::MAX,
             branch: Branch::Mask,
+            eps_scale: 1.0,
             record: false,
             calls: Vec::new(),
         }
@@ -157,7 +160,7 @@ impl DenoiserEngine for GaussianDenoiser {
                             / self.std[j],
                     );
                     let bs = f64::from(self.sigma[r][j] / self.std[j]);
-                    eps[i] = posterior_eps(ab, f64::from(x[i]), a, bs) as f32;
+                    eps[i] = self.eps_scale * posterior_eps(ab, f64::from(x[i]), a, bs) as f32;
                 }
             }
         }
@@ -252,6 +255,11 @@ fn assert_moments_with(
         for r in 0..T {
             for j in 0..D {
                 let (mean, sd, count) = moments(out, ctx, ctx0, r, j);
+                if r == T - 1 && j >= STATE {
+                    // The layout's last row `(s_H, 0)`: the sampler writes no action there.
+                    assert_eq!((mean, sd), (0.0, 0.0), "last-row action ({r},{j})");
+                    continue;
+                }
                 let sigma = want_std(r, j);
                 let want = f64::from(engine.mu[r][j] + w * engine.delta[r][j] * ctx0);
                 let se = sigma / (count as f64).sqrt();
@@ -275,6 +283,7 @@ fn ddpm_with_noise_factor_one_reproduces_the_data_distribution() {
     let config = SamplerConfig {
         method: SamplingMethod::Ddpm { noise_factor: 1.0 },
         guidance_weight: 1.0,
+        ..SamplerConfig::default()
     };
     let out = run(&mut engine, &config, &ctx, None, 11, 4000).unwrap();
     assert_moments(&engine, &out, &ctx, 1.0, 0.06);
@@ -306,6 +315,7 @@ fn ddim_is_deterministic_and_lands_on_the_data_mean() {
             eta: 0.0,
         },
         guidance_weight: 1.0,
+        ..SamplerConfig::default()
     };
     let a = run(&mut engine, &config, &ctx, None, 5, 2000).unwrap();
     let b = run(&mut engine, &config, &ctx, None, 5, 2000).unwrap();
@@ -331,6 +341,7 @@ fn ddim_over_all_steps_with_eta_one_matches_ddpm_moments() {
             eta: 1.0,
         },
         guidance_weight: 1.0,
+        ..SamplerConfig::default()
     };
     let out = run(&mut engine, &config, &ctx, None, 8, 2000).unwrap();
     assert_moments(&engine, &out, &ctx, 1.0, 0.08);
@@ -347,6 +358,7 @@ fn guidance_weight_scales_the_conditional_shift() {
             eta: 0.0,
         },
         guidance_weight: 2.0,
+        ..SamplerConfig::default()
     };
     let out = run(&mut engine, &config, &ctx, None, 9, 2000).unwrap();
     assert_moments_with(&engine, &out, &ctx, 2.0, 0.06, |r, j| {
@@ -361,6 +373,7 @@ fn guidance_one_is_the_conditioned_prediction_and_zero_the_unconditioned() {
         let config = SamplerConfig {
             method: SamplingMethod::Ddpm { noise_factor: 0.5 },
             guidance_weight: w,
+            ..SamplerConfig::default()
         };
         let guided = run(&mut GaussianDenoiser::new(), &config, &ctx, None, 3, 16).unwrap();
         let mut single = GaussianDenoiser::new();
@@ -470,6 +483,7 @@ fn chunking_gives_identical_bits() {
                 eta: 0.7,
             },
             guidance_weight: 1.2,
+            ..SamplerConfig::default()
         },
     ] {
         let whole = run(
@@ -666,6 +680,57 @@ fn bad_calls_get_typed_errors() {
     }
     .to_string();
     assert!(text.contains('4') && text.contains('3'), "{text}");
+}
+
+#[test]
+fn clipping_the_denoised_estimate_keeps_an_imperfect_denoiser_bounded() {
+    // A denoiser that predicts no noise (an untrained one, roughly) makes every DDPM step
+    // `x ← x/√α_t`: unclipped the samples grow by 1/√ᾱ_T ≈ 5000; clipped they stay within the
+    // bound (in normalised units).
+    let ctx = contexts(64);
+    let worst = |clip: f32| {
+        let mut engine = GaussianDenoiser::new();
+        engine.eps_scale = 0.0;
+        let config = SamplerConfig {
+            clip_denoised: clip,
+            ..SamplerConfig::default()
+        };
+        let out = run(&mut engine, &config, &ctx, None, 4, 64).unwrap();
+        out.chunks(D)
+            .flat_map(|row| {
+                row.iter()
+                    .enumerate()
+                    .map(|(j, v)| ((v - engine.mean[j]) / engine.std[j]).abs())
+                    .collect::<Vec<_>>()
+            })
+            .fold(0.0f32, f32::max)
+    };
+    let unclipped = worst(f32::INFINITY);
+    let clipped = worst(DEFAULT_DENOISED_CLIP);
+    assert!(unclipped > 100.0, "unclipped worst |z| {unclipped}");
+    assert!(
+        clipped <= DEFAULT_DENOISED_CLIP + 1e-3,
+        "clipped worst |z| {clipped}"
+    );
+    // The exact predictor is untouched by the default bound: same bits with and without.
+    let config = SamplerConfig::default();
+    let off = SamplerConfig {
+        clip_denoised: f32::INFINITY,
+        ..config
+    };
+    let a = run(&mut GaussianDenoiser::new(), &config, &ctx, None, 4, 64).unwrap();
+    let b = run(&mut GaussianDenoiser::new(), &off, &ctx, None, 4, 64).unwrap();
+    assert_eq!(a, b);
+    for bad in [0.0, -1.0, f32::NAN] {
+        let c = SamplerConfig {
+            clip_denoised: bad,
+            ..config
+        };
+        assert_eq!(
+            run(&mut GaussianDenoiser::new(), &c, &ctx, None, 4, 64).unwrap_err(),
+            SampleError::Sampler(SamplerError::BadConfig)
+        );
+    }
 }
 
 #[test]

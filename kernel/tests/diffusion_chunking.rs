@@ -122,6 +122,7 @@ proptest! {
                 SamplingMethod::Ddpm { noise_factor: eta }
             },
             guidance_weight: w,
+            ..SamplerConfig::default()
         };
         let whole = run(&mut mk(usize::MAX), &config, n, n, seed);
         let split = run(&mut mk(max_batch), &config, n, chunk, seed);

@@ -478,6 +478,7 @@ fn ddim_and_sampler_settings_are_selectable() {
     let ddim = SamplerConfig {
         method: SamplingMethod::Ddim { steps: 4, eta: 0.0 },
         guidance_weight: 1.0,
+        ..SamplerConfig::default()
     };
     let (report, denoiser, _) = plan_screwdriver(&config, ddim, 48);
     assert_eq!(report.status, SearchStatus::Found, "{report:?}");
@@ -492,6 +493,7 @@ fn ddim_and_sampler_settings_are_selectable() {
             noise_factor: f32::NAN,
         },
         guidance_weight: 1.2,
+        ..SamplerConfig::default()
     };
     let (report, denoiser, _) = plan_screwdriver(&config, bad, 8);
     assert_eq!(

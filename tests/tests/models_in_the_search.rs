@@ -78,6 +78,8 @@ fn plan(kind: EngineKind, model_task: Task, task: Task) -> SearchReport {
     let models = Models {
         denoiser: load(kind, model_task, Role::Denoiser),
         discriminator: load(kind, model_task, Role::Discriminator),
+        prior: None,
+        dir: std::path::PathBuf::new(),
     };
     let prior = MarkovPrior::uniform(task.mode_count()).unwrap();
     let goal = match task {

@@ -1,14 +1,21 @@
-//! `dips episode`: one closed-loop episode in the quasi-static world (`CONTRACTS.md` §5).
+//! `dips episode`: one closed-loop episode of a method in the quasi-static world
+//! (`CONTRACTS.md` §5; the methods are `dips_host::online`'s).
 
 use std::path::PathBuf;
 
 use anyhow::{Context, bail};
 use clap::Args;
 
-use dips_host::execute::{ExecSettings, prior_sequence_for_seed, run_episode};
+use dips_host::execute::ExecSettings;
+use dips_host::online::{Method, OnlineSettings, run_online};
+use dips_host::planning::{Models, default_models_dir};
 use dips_host::problems::Mode;
 use dips_host::problems::mode::parse_mode;
 use dips_host::scenes::SceneKind;
+use dips_host::world::World;
+
+use crate::model::EngineArg;
+use crate::plan::sampler_config;
 
 /// Arguments of `dips episode`.
 #[derive(Debug, Args)]
@@ -16,29 +23,36 @@ pub struct EpisodeArgs {
     /// Task: `screwdriver` or `card`.
     #[arg(long)]
     pub task: String,
-    /// Method: `csvto-sampled` (the others come with the search).
+    /// Method: dips, dips-sampled, csvto-sampled, dips-no-replan, dips-k1,
+    /// dips-max-likelihood.
     #[arg(long)]
     pub method: String,
-    /// Seed of the contact-sequence draw and the CSVTO initialisation.
+    /// Seed of the episode (contact-sequence draw, search, samplers, CSVTO initialisation).
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
-    /// Execute this comma-separated mode sequence instead of the method's own.
+    /// Execute this comma-separated mode sequence instead of the prior's draw (dips-sampled,
+    /// csvto-sampled).
     #[arg(long, value_delimiter = ',')]
     pub modes: Option<Vec<String>>,
+    /// Models directory (default: the shipped models, `onnx/models/<task>`).
+    #[arg(long)]
+    pub models: Option<PathBuf>,
+    /// Engine that runs the models.
+    #[arg(long, value_enum, default_value_t = EngineArg::Kernel)]
+    pub engine: EngineArg,
+    /// Wall-clock budget of each planning call in seconds (the paper's: 300).
+    #[arg(long, default_value_t = 300.0)]
+    pub time_budget_s: f64,
+    /// Most node expansions per planning call (0: the planner's capacity).
+    #[arg(long, default_value_t = 0)]
+    pub node_budget: u32,
+    /// Diffusion sampler of the search and the initialisation: `ddpm` or `ddim:STEPS`.
+    #[arg(long, default_value = "ddpm")]
+    pub sampler: String,
     /// Output directory; `result.json` is written there.
     #[arg(long)]
     pub out: PathBuf,
 }
-
-/// Methods of CONTRACTS §5 that need the diffusion search, not available in this command yet.
-const SEARCH_METHODS: [&str; 6] = [
-    "dips",
-    "dips-sampled",
-    "dips-no-replan",
-    "dips-k1",
-    "dips-max-likelihood",
-    "diffusion-policy",
-];
 
 /// Run the command.
 pub fn run(args: EpisodeArgs) -> anyhow::Result<()> {
@@ -48,30 +62,52 @@ pub fn run(args: EpisodeArgs) -> anyhow::Result<()> {
             args.task
         )
     })?;
-    if args.method != "csvto-sampled" {
-        if SEARCH_METHODS.contains(&args.method.as_str()) {
-            bail!(
-                "method `{}` needs the diffusion models and the contact search, which `dips \
-                 episode` does not run yet; available: csvto-sampled",
-                args.method
-            );
-        }
-        bail!("unknown method `{}`; available: csvto-sampled", args.method);
+    if args.method == "diffusion-policy" {
+        bail!(
+            "method `diffusion-policy` is not available yet; available: {}",
+            Method::ALL.map(Method::name).join(", ")
+        );
     }
-    let modes: Vec<Mode> = match &args.modes {
-        Some(names) => names
-            .iter()
-            .map(|n| parse_mode(task, n.trim()))
-            .collect::<Result<_, _>>()?,
-        None => prior_sequence_for_seed(task, args.seed),
+    let method = Method::from_name(&args.method)?;
+    if !(args.time_budget_s.is_finite() && args.time_budget_s >= 0.0) {
+        bail!("--time-budget-s must be a finite number of seconds ≥ 0");
+    }
+    let sequence: Option<Vec<Mode>> = match &args.modes {
+        Some(names) => Some(
+            names
+                .iter()
+                .map(|n| parse_mode(task, n.trim()))
+                .collect::<Result<_, _>>()?,
+        ),
+        None => None,
     };
-    let settings = ExecSettings::for_task(task);
+    // Fail on the output path before the episode, not after it.
+    std::fs::create_dir_all(&args.out)
+        .with_context(|| format!("cannot create the output directory {}", args.out.display()))?;
+    let models = if method.needs_models() {
+        let dir = match &args.models {
+            Some(d) => d.clone(),
+            None => default_models_dir(task.task())?,
+        };
+        Some(Models::load(args.engine.into(), &dir, task.task())?)
+    } else {
+        None
+    };
+    let settings = OnlineSettings {
+        time_budget_s: args.time_budget_s,
+        node_budget: args.node_budget,
+        sampler: sampler_config(&args.sampler)?,
+        sequence,
+    };
+    let exec = ExecSettings::for_task(task);
+    let mut world = World::new(task);
     let mut progress = |line: &str| eprintln!("{line}");
-    let result = run_episode(
-        task,
-        &args.method,
+    let result = run_online(
+        &mut world,
+        method,
         args.seed,
-        &modes,
+        models,
+        &exec,
         &settings,
         &mut progress,
     )?;

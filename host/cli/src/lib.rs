@@ -9,6 +9,7 @@ pub mod bench_sim;
 pub mod datagen;
 pub mod episode;
 pub mod model;
+pub mod model_quality;
 pub mod plan;
 pub mod sim;
 pub mod train;

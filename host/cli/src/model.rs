@@ -37,6 +37,11 @@ pub enum ModelCommand {
         #[arg(long, value_enum, default_value_t = EngineArg::Tract)]
         engine: EngineArg,
     },
+    /// Measure trained models on their held-out demos: coherence of diffused trajectories
+    /// beside real ones, open-loop executions; writes `quality.json` into the models directory.
+    Quality(crate::model_quality::QualityArgs),
+    /// Write `MODEL_CARD.md` from `train_report.json` and `quality.json`.
+    Card(crate::model_quality::CardArgs),
     /// Lower to the kernel blob.
     Lower {
         /// The `.onnx` file.
@@ -68,6 +73,8 @@ impl From<EngineArg> for EngineKind {
 /// Run `dips model`.
 pub fn run(args: ModelArgs) -> anyhow::Result<()> {
     match args.command {
+        ModelCommand::Quality(a) => crate::model_quality::run_quality(a)?,
+        ModelCommand::Card(a) => crate::model_quality::run_card(a)?,
         ModelCommand::Check { file } => {
             let (proto, c) = contract::load_contract(&file)
                 .with_context(|| format!("checking {}", file.display()))?;

@@ -1,9 +1,11 @@
 //! `dips plan`: one A* planning call from the task's start state (`CONTRACTS.md` §5).
 //!
-//! The models are read from `--models DIR` (`denoiser.onnx` and `discriminator.onnx`, contract
-//! v1, checked against the task) and run by the kernel's interpreter (default) or tract. The
-//! search is the kernel's `PaperPlanner` with the paper's settings unless flags change them,
-//! the prior is the paper's (`MarkovPrior::paper`), and the start state is the world's. The
+//! The models are read from `--models DIR` or the shipped ones (`denoiser.onnx` and
+//! `discriminator.onnx`, contract v1, checked against the task) and run by the kernel's
+//! interpreter (default) or tract. The search is the kernel's `PaperPlanner` with the paper's
+//! settings unless flags change them, the prior is the directory's `prior.json` (fitted from
+//! the training data) or else the paper's (`MarkovPrior::paper`), and the start state is the
+//! world's. The
 //! wiring is the shared planning session ([`dips_host::planning::Session`]).
 
 use std::path::PathBuf;
@@ -18,7 +20,7 @@ use dips_kernel::session::PlanSpec;
 use dips_onnx::EngineKind;
 use serde_json::json;
 
-use dips_host::planning::{Models, PaperSession, StdClock};
+use dips_host::planning::{Models, PaperSession, StdClock, default_models_dir};
 use dips_host::problems::contract::contract_state;
 use dips_host::scenes::SceneKind;
 use dips_host::world::World;
@@ -38,9 +40,10 @@ pub struct PlanArgs {
     /// Task: `screwdriver` or `card`.
     #[arg(long)]
     pub task: String,
-    /// Directory holding `denoiser.onnx` and `discriminator.onnx`.
-    #[arg(long, default_value = "models")]
-    pub models: PathBuf,
+    /// Directory holding `denoiser.onnx`, `discriminator.onnx` and optionally `prior.json`
+    /// (default: the shipped models, `onnx/models/<task>`, or `$DIPS_MODELS/<task>`).
+    #[arg(long)]
+    pub models: Option<PathBuf>,
     /// Seed of the search's random stream.
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
@@ -71,7 +74,8 @@ pub struct PlanArgs {
     pub json: bool,
 }
 
-fn sampler_config(spec: &str) -> anyhow::Result<SamplerConfig> {
+/// Parse `--sampler`: `ddpm` (the paper's) or `ddim:STEPS`.
+pub fn sampler_config(spec: &str) -> anyhow::Result<SamplerConfig> {
     if spec == "ddpm" {
         return Ok(SamplerConfig::default());
     }
@@ -144,7 +148,21 @@ pub fn run(args: PlanArgs) -> anyhow::Result<()> {
         PlanEngine::Kernel => EngineKind::Kernel,
         PlanEngine::Tract => EngineKind::Tract,
     };
-    let mut session = PaperSession::new(Models::load(kind, &args.models, task)?);
+    let dir = match &args.models {
+        Some(d) => d.clone(),
+        None => default_models_dir(task)?,
+    };
+    let models = Models::load(kind, &dir, task)?;
+    let prior_source = match models.prior {
+        Some(prior) => {
+            spec.prior = prior;
+            spec.check()
+                .map_err(|e| anyhow!("{}: {e}", dir.display()))?;
+            "fitted (prior.json)"
+        }
+        None => "paper",
+    };
+    let mut session = PaperSession::new(models);
     let t0 = Instant::now();
     let report = session.plan(&spec, &mut StdClock(t0))?;
     let planning_s = t0.elapsed().as_secs_f64();
@@ -159,6 +177,8 @@ pub fn run(args: PlanArgs) -> anyhow::Result<()> {
         "seed": args.seed,
         "engine": format!("{:?}", args.engine).to_lowercase(),
         "sampler": args.sampler,
+        "models": dir.display().to_string(),
+        "prior": prior_source,
         "goal": goal,
         "settings": {
             "k": config.k,

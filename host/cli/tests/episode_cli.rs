@@ -13,25 +13,84 @@ fn temp_dir(name: &str) -> std::path::PathBuf {
 }
 
 #[test]
-fn search_methods_are_rejected_with_a_clear_error() {
+fn unknown_and_unavailable_methods_list_the_available_ones() {
+    for (method, expect) in [
+        ("pen", "unknown method"),
+        ("diffusion-policy", "not available"),
+    ] {
+        let out = dips()
+            .args(["episode", "--task", "card", "--method", method, "--out"])
+            .arg(temp_dir("reject"))
+            .output()
+            .expect("run dips");
+        assert!(!out.status.success());
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(
+            err.contains(expect)
+                && err.contains("dips-max-likelihood")
+                && err.contains("csvto-sampled"),
+            "{err}"
+        );
+    }
+}
+
+#[test]
+fn bad_models_and_output_paths_fail_before_the_episode() {
     let out = dips()
-        .args([
-            "episode",
-            "--task",
-            "screwdriver",
-            "--method",
-            "dips",
-            "--out",
-        ])
-        .arg(temp_dir("reject"))
+        .args(["episode", "--task", "card", "--method", "dips"])
+        .args(["--models", "/nonexistent-dips-models", "--out"])
+        .arg(temp_dir("models"))
         .output()
         .expect("run dips");
     assert!(!out.status.success());
     let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("/nonexistent-dips-models"), "{err}");
+    let out = dips()
+        .args(["episode", "--task", "card", "--method", "csvto-sampled"])
+        .args(["--out", "/dev/null/result-dir"])
+        .output()
+        .expect("run dips");
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("cannot create the output directory"), "{err}");
+    assert!(!err.contains("mode 1/"), "the episode ran first: {err}");
+}
+
+#[test]
+fn a_dips_card_episode_plans_before_every_mode_with_the_shipped_models() {
+    let dir = temp_dir("dips");
+    let out = dips()
+        .args([
+            "episode", "--task", "card", "--method", "dips", "--seed", "3",
+        ])
+        .args(["--sampler", "ddim:4", "--node-budget", "3", "--out"])
+        .arg(&dir)
+        .output()
+        .expect("run dips");
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{err}");
+    let v: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("result.json")).unwrap()).unwrap();
+    assert_eq!(v["method"], "dips");
+    let modes = v["modes"].as_array().unwrap();
+    let plans = v["plans"].as_array().unwrap();
+    assert!(!modes.is_empty() && modes.len() <= 5, "{v}");
+    // One call before every executed mode (and one more when the last plan was empty).
     assert!(
-        err.contains("csvto-sampled") && err.contains("`dips`"),
-        "{err}"
+        plans.len() == modes.len() || plans.len() == modes.len() + 1,
+        "{v}"
     );
+    assert_eq!(v["planning_s"].as_array().unwrap().len(), plans.len());
+    for (i, p) in plans.iter().enumerate() {
+        assert_eq!(p["executed"], i);
+        assert!(p["nodes_expanded"].as_u64().unwrap() <= 3, "{p}");
+        assert!(p["seconds"].as_f64().unwrap() > 0.0);
+        if let Some(first) = p["modes"].as_array().unwrap().first() {
+            assert_eq!(first, &modes[i], "plan {i} was not the executed mode");
+        }
+    }
+    assert!(v["final_distance_m"].as_f64().unwrap().is_finite());
+    let _ = std::fs::remove_dir_all(&dir);
 }
 
 #[test]
@@ -76,7 +135,9 @@ fn a_given_mode_sequence_writes_result_json() {
     assert!(v["final_yaw"].as_f64().expect("final_yaw") < -0.2);
     assert!(v["valid"].is_boolean());
     assert_eq!(v["csvto_step_s"].as_array().map(Vec::len), Some(12));
-    assert_eq!(v["planning_s"].as_array().map(Vec::len), Some(1));
+    // A fixed sequence makes no planning call.
+    assert_eq!(v["planning_s"].as_array().map(Vec::len), Some(0));
+    assert!(v.get("plans").is_none());
     // Progress went to stderr.
     assert!(String::from_utf8_lossy(&out.stderr).contains("turn step 12/12"));
     let _ = std::fs::remove_dir_all(&dir);

@@ -82,6 +82,9 @@ pub enum DatasetError {
 /// Result of this crate.
 pub type Result<T> = std::result::Result<T, DatasetError>;
 
+pub mod prior_file;
+pub use prior_file::{PRIOR_FORMAT, PriorFile};
+
 /// One demo: every recorded trajectory of one episode.
 #[derive(Debug, Clone, PartialEq)]
 pub struct DemoRecord {

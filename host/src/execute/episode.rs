@@ -86,6 +86,28 @@ pub struct EpisodeResult {
     pub csvto_step_s: Vec<f64>,
     /// Per-mode details (start/end states, per-step logs, regrasp distances).
     pub mode_runs: Vec<ModeRun>,
+    /// Every planning call of a searching method, in order (empty for fixed sequences).
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub plans: Vec<PlanRecord>,
+}
+
+/// One planning call of an online method (`result.json`'s `plans`).
+#[derive(Debug, Clone, Serialize)]
+pub struct PlanRecord {
+    /// Modes executed before the call.
+    pub executed: usize,
+    /// The goal searched for (yaw in rad, or card y in m).
+    pub goal: f32,
+    /// The planned modes, by name (the first is executed next).
+    pub modes: Vec<&'static str>,
+    /// How the search ended (`Found`, `Approximate(..)`, ...).
+    pub status: String,
+    /// Expected terminal state of the plan (contract state columns; `null` where not finite).
+    pub expected_terminal_state: Vec<Option<f32>>,
+    /// Node expansions.
+    pub nodes_expanded: u32,
+    /// Wall time of the call (s).
+    pub seconds: f64,
 }
 
 impl EpisodeResult {
@@ -164,27 +186,50 @@ pub fn run_episode_observed<H: Hand + ?Sized>(
         step_s.extend(run.solve_times());
         runs.push(run);
     }
+    let planning_s = vec![0.0; modes.len()];
     let end = hand_state(hand);
-    let nq = end.len() - 3;
-    let (final_yaw, final_distance_m, final_dy_m) = match task {
-        SceneKind::Screwdriver => (Some(end[nq + 2]), None, None),
-        SceneKind::Card => {
-            let g = card::goal_from_start(start[nq], start[nq + 1]);
-            let d = ((end[nq] - g[0]).powi(2) + (end[nq + 1] - g[1]).powi(2)).sqrt();
-            (None, Some(d), Some(end[nq + 1] - start[nq + 1]))
+    Ok(EpisodeResult::assemble(
+        task, method, seed, &start, &end, runs, planning_s, step_s, valid,
+    ))
+}
+
+impl EpisodeResult {
+    /// The result of `runs` executed from `start` to `end` (task states): the final yaw, or
+    /// the card's distance to its goal and its displacement; no planning records.
+    #[allow(clippy::too_many_arguments)]
+    pub fn assemble(
+        task: SceneKind,
+        method: &str,
+        seed: u64,
+        start: &[f64],
+        end: &[f64],
+        runs: Vec<ModeRun>,
+        planning_s: Vec<f64>,
+        csvto_step_s: Vec<f64>,
+        valid: bool,
+    ) -> Self {
+        let nq = end.len() - 3;
+        let (final_yaw, final_distance_m, final_dy_m) = match task {
+            SceneKind::Screwdriver => (Some(end[nq + 2]), None, None),
+            SceneKind::Card => {
+                let g = card::goal_from_start(start[nq], start[nq + 1]);
+                let d = ((end[nq] - g[0]).powi(2) + (end[nq + 1] - g[1]).powi(2)).sqrt();
+                (None, Some(d), Some(end[nq + 1] - start[nq + 1]))
+            }
+        };
+        EpisodeResult {
+            task: task.name(),
+            method: method.to_string(),
+            seed,
+            modes: runs.iter().map(|r| r.mode).collect(),
+            final_yaw,
+            final_distance_m,
+            final_dy_m,
+            valid,
+            planning_s,
+            csvto_step_s,
+            mode_runs: runs,
+            plans: Vec::new(),
         }
-    };
-    Ok(EpisodeResult {
-        task: task.name(),
-        method: method.to_string(),
-        seed,
-        modes: modes.iter().map(|m| m.name()).collect(),
-        final_yaw,
-        final_distance_m,
-        final_dy_m,
-        valid,
-        planning_s: vec![0.0; modes.len()],
-        csvto_step_s: step_s,
-        mode_runs: runs,
-    })
+    }
 }

@@ -17,7 +17,7 @@ use crate::data::{
 use crate::error::{Result, TrainError, io_err};
 use crate::net::{Denoiser, NetDims, tensor};
 use crate::params::{Checkpoint, OptimState, ParamStore, to_vec};
-use crate::progress::{RunOptions, bar};
+use crate::progress::{RunClock, RunOptions, bar};
 use crate::settings::TrainSettings;
 
 /// Figures of a denoiser training run (`train_report.json`).
@@ -43,9 +43,9 @@ pub struct DenoiserReport {
     pub held_out_loss: Option<f32>,
     /// Mean training loss of the last (up to) 100 steps.
     pub train_loss_final: f32,
-    /// Mean wall time of one optimiser step in this run (seconds).
+    /// Mean wall time of one optimiser step, over every run of this stage (seconds).
     pub step_time_s: f64,
-    /// Wall time of this run (seconds).
+    /// Wall time of this stage, summed over its runs when resumed (seconds).
     pub seconds: f64,
 }
 
@@ -269,7 +269,9 @@ pub fn train_denoiser(
         ("data".to_string(), fingerprint(&[&train.x, &train.context])),
     ]);
     let mut optim = OptimState::new(&params);
+    let mut clock = RunClock::start(started, None);
     if let Some(ck) = resume(&ck_path, &params, &meta, opts)? {
+        clock = RunClock::start(started, Some(&ck.meta));
         params = ck.params;
         optim = ck.optim;
     }
@@ -287,7 +289,7 @@ pub fn train_denoiser(
     pb.set_position(optim.step as u64);
     let mut order_cache = None;
     let mut recent: Vec<f32> = Vec::new();
-    let loop_start = Instant::now();
+    clock.loop_started();
     while optim.step < s.steps {
         let step = optim.step;
         let mut rng = stream(settings.seed, purpose::STEP, step as u64);
@@ -352,7 +354,7 @@ pub fn train_denoiser(
             Checkpoint {
                 params: params.clone(),
                 optim: optim.clone(),
-                meta: meta.clone(),
+                meta: clock.stamp(&meta),
             }
             .save(&ck_path)?;
         }
@@ -362,12 +364,7 @@ pub fn train_denoiser(
         }
     }
     pb.finish_and_clear();
-    let steps_run = s.steps - resumed_from;
-    let step_time_s = if steps_run > 0 {
-        loop_start.elapsed().as_secs_f64() / steps_run as f64
-    } else {
-        0.0
-    };
+    let step_time_s = clock.loop_seconds() / s.steps.max(1) as f64;
     let ema = ParamStore {
         data: optim.ema.clone(),
         ..params.clone()
@@ -391,7 +388,7 @@ pub fn train_denoiser(
         held_out_loss,
         train_loss_final: recent.iter().sum::<f32>() / recent.len().max(1) as f32,
         step_time_s,
-        seconds: started.elapsed().as_secs_f64(),
+        seconds: clock.run_seconds(),
     };
     Ok(TrainedDenoiser {
         task,

@@ -28,7 +28,7 @@ use crate::denoiser::{
 use crate::error::{Result, TrainError, io_err};
 use crate::net::{Discriminator, tensor};
 use crate::params::{Checkpoint, OptimState, ParamStore, to_vec};
-use crate::progress::{RunOptions, bar};
+use crate::progress::{RunClock, RunOptions, bar};
 use crate::settings::TrainSettings;
 
 /// Trajectories per sampler call (each step evaluates twice as many: guidance).
@@ -59,9 +59,9 @@ pub struct DiscriminatorReport {
     pub held_out_auc: Option<f32>,
     /// Training-set accuracy at p = 0.5.
     pub train_accuracy: f32,
-    /// Mean wall time of one optimiser step (seconds).
+    /// Mean wall time of one optimiser step, over every run of this stage (seconds).
     pub step_time_s: f64,
-    /// Wall time of this run (seconds).
+    /// Wall time of this stage, summed over its runs when resumed (seconds).
     pub seconds: f64,
 }
 
@@ -239,9 +239,12 @@ fn pairs(
             noise_factor: s.noise_factor,
         },
         guidance_weight: s.guidance_weight,
+        ..SamplerConfig::default()
     };
+    // `v2`: the sampler zeroes the last row's action (older caches are stale).
     let key = format!(
-        "{}-{}-{}-{}-{seed}",
+        "v2-{:?}-{}-{}-{}-{}-{seed}",
+        config.clip_denoised,
         fingerprint(
             &denoiser
                 .params
@@ -383,7 +386,9 @@ pub fn train_discriminator(
         ),
     ]);
     let mut optim = OptimState::new(&params);
+    let mut clock = RunClock::start(started, None);
     if let Some(ck) = resume(&ck_path, &params, &meta, opts)? {
+        clock = RunClock::start(started, Some(&ck.meta));
         params = ck.params;
         optim = ck.optim;
     }
@@ -399,7 +404,7 @@ pub fn train_discriminator(
     pb.set_position(optim.step as u64);
     let mut cache = None;
     let mut recent = Vec::new();
-    let loop_start = Instant::now();
+    clock.loop_started();
     while optim.step < s.steps {
         let step = optim.step;
         let idx = batch_indices(
@@ -449,7 +454,7 @@ pub fn train_discriminator(
             Checkpoint {
                 params: params.clone(),
                 optim: optim.clone(),
-                meta: meta.clone(),
+                meta: clock.stamp(&meta),
             }
             .save(&ck_path)?;
         }
@@ -459,12 +464,7 @@ pub fn train_discriminator(
         }
     }
     pb.finish_and_clear();
-    let steps_run = s.steps - resumed_from;
-    let step_time_s = if steps_run > 0 {
-        loop_start.elapsed().as_secs_f64() / steps_run as f64
-    } else {
-        0.0
-    };
+    let step_time_s = clock.loop_seconds() / s.steps.max(1) as f64;
     let (tr, tf, _) = evaluate(&net, &params, &tp, dims)?;
     let (held_out_loss, held_out_accuracy, held_out_auc) = match &ep {
         Some(ep) => {
@@ -486,7 +486,7 @@ pub fn train_discriminator(
         held_out_auc,
         train_accuracy: accuracy(&tr, &tf),
         step_time_s,
-        seconds: started.elapsed().as_secs_f64(),
+        seconds: clock.run_seconds(),
     };
     Ok(TrainedDiscriminator {
         task,

@@ -43,6 +43,10 @@ pub const DENOISER_FILE: &str = "denoiser.onnx";
 pub const DISCRIMINATOR_FILE: &str = "discriminator.onnx";
 /// The report's file name.
 pub const REPORT_FILE: &str = "train_report.json";
+/// The fitted contact-mode prior's file name.
+pub const PRIOR_FILE: &str = "prior.json";
+/// The floor of the fitted prior (the paper's `p_min`).
+pub const PRIOR_P_MIN: f32 = 0.1;
 
 /// What [`run`] writes to `train_report.json`.
 #[derive(Debug, Clone, Serialize)]
@@ -67,6 +71,8 @@ pub struct TrainReport {
     pub norm_mean: Vec<f32>,
     /// The normalisation's standard deviations.
     pub norm_std: Vec<f32>,
+    /// The prior fitted from the demos' mode sequences (also in `prior.json`).
+    pub prior: dips_dataset::PriorFile,
 }
 
 /// Write the denoiser to `path` (validated against contract v1 first).
@@ -79,8 +85,8 @@ pub fn export_discriminator(d: &TrainedDiscriminator, path: &Path) -> Result<dip
     export::write_model(path, &d.onnx()?)
 }
 
-/// Read the dataset in `data_dir`, train both models, and write `denoiser.onnx`,
-/// `discriminator.onnx` and `train_report.json` into `out_dir` (checkpoints under
+/// Read the dataset in `data_dir`, fit the contact-mode prior, train both models, and write
+/// `prior.json`, `denoiser.onnx`, `discriminator.onnx` and `train_report.json` into `out_dir` (checkpoints under
 /// `out_dir/checkpoints/`; a killed run resumes from them).
 pub fn run(
     task: Task,
@@ -92,6 +98,8 @@ pub fn run(
     settings.validate()?;
     let ds = dips_dataset::read_dir(data_dir, task)?;
     std::fs::create_dir_all(out_dir).map_err(io_err(out_dir))?;
+    let prior = dips_dataset::PriorFile::fit(&ds, PRIOR_P_MIN)?;
+    prior.save(&out_dir.join(PRIOR_FILE))?;
     let den = train_denoiser(&ds, settings, out_dir, opts)?;
     export_denoiser(&den, &out_dir.join(DENOISER_FILE))?;
     let disc = train_discriminator(&ds, settings, &den, out_dir, opts)?;
@@ -108,6 +116,7 @@ pub fn run(
         discriminator: disc.report.clone(),
         norm_mean: den.norm.mean.clone(),
         norm_std: den.norm.std.clone(),
+        prior,
     };
     let path = out_dir.join(REPORT_FILE);
     let json = serde_json::to_vec_pretty(&report).map_err(|e| TrainError::Io {

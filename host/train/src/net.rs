@@ -4,8 +4,10 @@
 //! Denoiser (spec §4.1, scaled by [`NetSettings`]): `x [B,T,D]` → channels first → zero-pad the
 //! time axis to a multiple of `2^(stages−1)` → down stages (2 residual blocks, then a stride-2
 //! Conv1d(k3, p1) except at the last stage) → middle blocks → up stages (concatenate the skip
-//! of that resolution, 2 residual blocks, ConvTranspose1d(k4, s2, p1)) → Conv1d(k3)+GroupNorm+
-//! Mish → Conv1d(k1) → crop → `eps [B,T,D]`. The conditioning embedding is
+//! of that resolution, 2 residual blocks, ConvTranspose1d(k4, s2, p1)) → concatenate the
+//! full-resolution skip, 2 residual blocks → Conv1d(k3)+GroupNorm+Mish → Conv1d(k1) → crop →
+//! `eps [B,T,D]`. Unlike Diffuser, the first stage's skip is used: without it every row's
+//! noise must pass a stride-2 bottleneck, and the held-out loss stalls (`docs/training.md`). The conditioning embedding is
 //! `Mish(Linear([SinPos(t) ; cond_mask·Mish(Linear(c))]))`, read by every residual block
 //! through its own `Linear(E→out)`.
 //!
@@ -361,6 +363,7 @@ pub struct Denoiser {
     emb: Linear,
     enc: Encoder,
     ups: Vec<(ResBlock, ResBlock, Upsample)>,
+    top: (ResBlock, ResBlock),
     final_conv: Conv,
     final_norm: GroupNorm,
     out: Conv,
@@ -392,6 +395,10 @@ impl Denoiser {
             ups.push((r1, r2, up));
         }
         let w0 = net.widths[0];
+        let top = (
+            ResBlock::new(ps, "top.res1", 2 * w0, w0, net, rng),
+            ResBlock::new(ps, "top.res2", w0, w0, net, rng),
+        );
         let final_conv = Conv::new(ps, "final.conv", w0, w0, 3, 1, 1, rng);
         let final_norm = GroupNorm::new(ps, "final.norm", w0, net.groups);
         let out = Conv::new(ps, "final.out", w0, dims.dim, 1, 1, 0, rng);
@@ -404,6 +411,7 @@ impl Denoiser {
             emb,
             enc,
             ups,
+            top,
             final_conv,
             final_norm,
             out,
@@ -442,6 +450,8 @@ impl Denoiser {
             h = r2.fwd(p, r1.fwd(p, h, &emb), &emb);
             h = up.fwd(p, h);
         }
+        let h = Tensor::cat(vec![h, skips[0].clone()], 1);
+        let h = self.top.1.fwd(p, self.top.0.fwd(p, h, &emb), &emb);
         let h = mish(self.final_norm.fwd(p, self.final_conv.fwd(p, h)));
         let h = self.out.fwd(p, h);
         h.narrow(2, 0, tt).swap_dims(1, 2)
@@ -477,6 +487,9 @@ impl Denoiser {
             let r = r2.emit(g, ps, &r, &emb);
             h = up.emit(g, ps, &r);
         }
+        let cat = g.node("Concat", &[&h, &skips[0]], vec![Attr::Int("axis", 1)]);
+        let h = self.top.0.emit(g, ps, &cat, &emb);
+        let h = self.top.1.emit(g, ps, &h, &emb);
         let h = self.final_conv.emit(g, ps, &h);
         let h = self.final_norm.emit(g, ps, &h);
         let h = g.node("Mish", &[&h], vec![]);

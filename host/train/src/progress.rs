@@ -34,3 +34,65 @@ pub(crate) fn bar(opts: &RunOptions, len: u64, prefix: &str) -> ProgressBar {
     pb.set_prefix(prefix.to_string());
     pb
 }
+
+/// Wall time of a training stage summed over its runs: a resumed run starts from what the
+/// checkpoint's metadata recorded, so the report gives the whole stage's time, not the last
+/// run's.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct RunClock {
+    prior_run: f64,
+    prior_loop: f64,
+    started: std::time::Instant,
+    loop_start: std::time::Instant,
+}
+
+impl RunClock {
+    const RUN: &'static str = "run_seconds";
+    const LOOP: &'static str = "loop_seconds";
+
+    /// Started now, with the times a checkpoint recorded (`None`: a fresh stage).
+    pub(crate) fn start(
+        started: std::time::Instant,
+        checkpoint: Option<&std::collections::HashMap<String, String>>,
+    ) -> Self {
+        let get = |k: &str| {
+            checkpoint
+                .and_then(|m| m.get(k))
+                .and_then(|v| v.parse::<f64>().ok())
+                .filter(|v| v.is_finite() && *v >= 0.0)
+                .unwrap_or(0.0)
+        };
+        Self {
+            prior_run: get(Self::RUN),
+            prior_loop: get(Self::LOOP),
+            started,
+            loop_start: std::time::Instant::now(),
+        }
+    }
+
+    /// The optimiser loop starts now.
+    pub(crate) fn loop_started(&mut self) {
+        self.loop_start = std::time::Instant::now();
+    }
+
+    /// `meta` plus the summed times, for a checkpoint written now.
+    pub(crate) fn stamp(
+        &self,
+        meta: &std::collections::HashMap<String, String>,
+    ) -> std::collections::HashMap<String, String> {
+        let mut m = meta.clone();
+        m.insert(Self::RUN.into(), self.run_seconds().to_string());
+        m.insert(Self::LOOP.into(), self.loop_seconds().to_string());
+        m
+    }
+
+    /// The stage's wall time so far, all runs.
+    pub(crate) fn run_seconds(&self) -> f64 {
+        self.prior_run + self.started.elapsed().as_secs_f64()
+    }
+
+    /// The optimiser loops' wall time so far, all runs.
+    pub(crate) fn loop_seconds(&self) -> f64 {
+        self.prior_loop + self.loop_start.elapsed().as_secs_f64()
+    }
+}

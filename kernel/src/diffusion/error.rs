@@ -74,7 +74,7 @@ pub enum SamplerError {
         /// The model's diffusion steps.
         diffusion_steps: usize,
     },
-    /// A sampler setting is not finite (or negative where it must not be).
+    /// A sampler setting is not finite, negative where it must not be, or a clip bound ≤ 0.
     BadConfig,
 }
 
@@ -116,7 +116,9 @@ impl fmt::Display for SamplerError {
                 steps,
                 diffusion_steps,
             } => write!(f, "DDIM steps {steps} outside 1..={diffusion_steps}"),
-            Self::BadConfig => f.write_str("sampler settings are not finite and non-negative"),
+            Self::BadConfig => f.write_str(
+                "sampler settings out of range (allowed: finite guidance weight, noise factor and η ≥ 0, clip_denoised > 0)",
+            ),
         }
     }
 }

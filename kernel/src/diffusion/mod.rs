@@ -12,7 +12,10 @@ pub mod sampler;
 pub mod schedule;
 pub mod scratch;
 
-pub use config::{DEFAULT_GUIDANCE_WEIGHT, DEFAULT_NOISE_FACTOR, SamplerConfig, SamplingMethod};
+pub use config::{
+    DEFAULT_DENOISED_CLIP, DEFAULT_GUIDANCE_WEIGHT, DEFAULT_NOISE_FACTOR, SamplerConfig,
+    SamplingMethod,
+};
 pub use error::{SampleError, SamplerError, ScratchBuffer};
 pub use normalize::{denormalize_in_place, normalize_in_place};
 pub use sampler::{SampleRequest, sample};

@@ -93,7 +93,8 @@ impl StepCoefficients {
 /// Sample `n = out.len() / (T·D)` trajectories into `out` (`[n, T, D]`, raw units).
 ///
 /// Starts from `x_T ~ N(0, I)` (normalized), runs the reverse process of `config`, and
-/// de-normalizes. Every step evaluates the conditioned and the unconditioned copy of each
+/// de-normalizes; the last row's action columns are zero, as the layout defines them
+/// (`(s_H, 0)`). Every step evaluates the conditioned and the unconditioned copy of each
 /// trajectory in one engine call (`cond_mask` 1 then 0), in chunks of at most
 /// `max_batch() / 2` trajectories (and what the scratch holds); chunking does not change the
 /// result. With start states, row 0's state columns are set to the normalized start state
@@ -145,6 +146,16 @@ pub fn sample<E: DenoiserEngine>(
 
     let norm = engine.normalization();
     denormalize_in_place(&norm, out);
+    // The layout's last row is `(s_H, 0)`: no action follows the last state.
+    let td = dims.floats_per_trajectory();
+    if dims.horizon > 0 {
+        let last = (dims.horizon - 1) * (dims.state_dim + dims.action_dim) + dims.state_dim;
+        for traj in out.chunks_mut(td) {
+            if let Some(action) = traj.get_mut(last..) {
+                action.fill(0.0);
+            }
+        }
+    }
     if let Some(starts) = request.start_states
         && dims.state_dim > 0
     {
@@ -203,7 +214,10 @@ fn validate<E: DenoiserEngine>(
         });
     }
     let finite_non_negative = |v: f32| v.is_finite() && v >= 0.0;
-    if !config.guidance_weight.is_finite() {
+    if !config.guidance_weight.is_finite()
+        || config.clip_denoised.is_nan()
+        || config.clip_denoised <= 0.0
+    {
         return Err(SamplerError::BadConfig);
     }
     match config.method {
@@ -241,6 +255,7 @@ fn step<E: DenoiserEngine>(
     let td = dims.floats_per_trajectory();
     let f = dims.fingers;
     let w = config.guidance_weight;
+    let clip = config.clip_denoised;
     for (c, x_chunk) in out.chunks_mut(chunk * td).enumerate() {
         let m = x_chunk.len() / td;
         let first = c * chunk;
@@ -277,8 +292,13 @@ fn step<E: DenoiserEngine>(
 
         let (eps_cond, eps_uncond) = eps.split_at(half);
         for ((x, ec), eu) in x_chunk.iter_mut().zip(eps_cond).zip(eps_uncond) {
-            let e = eu + w * (ec - eu);
-            let x0 = k.r * *x - k.r1 * e;
+            let mut e = eu + w * (ec - eu);
+            let raw = k.r * *x - k.r1 * e;
+            let x0 = raw.clamp(-clip, clip);
+            if x0 != raw && k.r1 > 0.0 {
+                // The noise estimate that agrees with the clipped x̂₀ (used by DDIM's `c`).
+                e = (k.r * *x - x0) / k.r1;
+            }
             let mut next = k.a * x0 + k.b * *x + k.c * e;
             if k.sigma > 0.0 {
                 next += k.sigma * rng.normal_f32();

@@ -1,0 +1,410 @@
+//! The online methods of the paper's experiments (`CONTRACTS.md` §5, spec §3.5): DIPS and its
+//! ablations, each an episode in which contact modes are chosen and CSVTO is initialised.
+//!
+//! - **DIPS** (`dips`): before each mode, one A* planning call in the kernel from the measured
+//!   state (goal: yaw − π/3, card y = −6 cm; depth 7 for the screwdriver, the remaining modes
+//!   for the card); the first planned mode is executed by CSVTO initialised with fresh
+//!   diffusion samples conditioned on the mode and the state; then replan. The episode stops at
+//!   the mode limit (7 / 5) or when a plan holds no mode.
+//! - `dips-k1` (one particle per node), `dips-max-likelihood` (single trajectory per node, the
+//!   best-scored of k samples kept): the same loop with the search changed.
+//! - `dips-no-replan`: one planning call (screwdriver goal fixed at −1.7 rad), its whole plan
+//!   executed.
+//! - `dips-sampled`: the prior's sequence, CSVTO initialised by diffusion samples.
+//! - `csvto-sampled`: the prior's sequence, CSVTO's default initialisation.
+
+use std::time::Instant;
+
+use anyhow::{Context, anyhow, bail};
+use dips_kernel::diffusion::{SampleRequest, SamplerConfig, SamplerScratch, ScratchLayout, sample};
+use dips_kernel::engine::DenoiserEngine;
+use dips_kernel::mode::{ModeId, Task};
+use dips_kernel::prior::MarkovPrior;
+use dips_kernel::rng::KernelRng;
+use dips_kernel::search::{SearchConfig, SearchVariant};
+use dips_kernel::session::PlanSpec;
+
+use crate::execute::episode::{CARD_MODES, SCREWDRIVER_MODES};
+use crate::execute::{
+    EpisodeResult, ExecSettings, PlanRecord, hand_state, mode_goal, pose_valid,
+    prior_sequence_for_seed, run_mode,
+};
+use crate::hand::Hand;
+use crate::kinematics::HandModel;
+use crate::planning::{Models, PaperSession, StdClock};
+use crate::problems::contract::{contract_state, from_contract};
+use crate::problems::{AllegroProblem, Mode, ProblemSpec};
+use crate::scenes::SceneKind;
+
+/// The screwdriver goal of `dips-no-replan` (rad), the paper's.
+pub const NO_REPLAN_YAW_GOAL: f32 = -1.7;
+
+/// A method of the paper's experiments.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Method {
+    /// Plan before every mode; diffusion-initialised CSVTO.
+    Dips,
+    /// The prior's sequence; diffusion-initialised CSVTO (ablation 2).
+    DipsSampled,
+    /// The prior's sequence; CSVTO's default initialisation (ablation 1).
+    CsvtoSampled,
+    /// One planning call, its plan executed whole (ablation 3).
+    DipsNoReplan,
+    /// `k = 1`: no variability propagation (ablation 4).
+    DipsK1,
+    /// One trajectory per node, the best-scored of `k` samples (ablation 5).
+    DipsMaxLikelihood,
+}
+
+impl Method {
+    /// Every method, in the paper's order.
+    pub const ALL: [Method; 6] = [
+        Method::Dips,
+        Method::DipsSampled,
+        Method::CsvtoSampled,
+        Method::DipsNoReplan,
+        Method::DipsK1,
+        Method::DipsMaxLikelihood,
+    ];
+
+    /// The `--method` name.
+    pub const fn name(self) -> &'static str {
+        match self {
+            Method::Dips => "dips",
+            Method::DipsSampled => "dips-sampled",
+            Method::CsvtoSampled => "csvto-sampled",
+            Method::DipsNoReplan => "dips-no-replan",
+            Method::DipsK1 => "dips-k1",
+            Method::DipsMaxLikelihood => "dips-max-likelihood",
+        }
+    }
+
+    /// Parse a `--method` name; the error lists the names.
+    pub fn from_name(name: &str) -> anyhow::Result<Self> {
+        Self::ALL
+            .into_iter()
+            .find(|m| m.name() == name)
+            .ok_or_else(|| {
+                anyhow!(
+                    "unknown method `{name}`; available: {}",
+                    Self::ALL.map(Method::name).join(", ")
+                )
+            })
+    }
+
+    /// Whether the method needs the diffusion models.
+    pub const fn needs_models(self) -> bool {
+        !matches!(self, Method::CsvtoSampled)
+    }
+
+    /// Whether the method searches for its modes.
+    pub const fn searches(self) -> bool {
+        !matches!(self, Method::DipsSampled | Method::CsvtoSampled)
+    }
+}
+
+/// Settings of an online episode beside CSVTO's.
+#[derive(Debug, Clone)]
+pub struct OnlineSettings {
+    /// Wall-clock budget of one planning call (s); the best node so far when it runs out.
+    pub time_budget_s: f64,
+    /// Most node expansions per planning call (0: the planner's capacity).
+    pub node_budget: u32,
+    /// Sampler of the search's edges and of CSVTO's initialisation.
+    pub sampler: SamplerConfig,
+    /// The sequence a fixed-sequence method executes instead of the prior's draw.
+    pub sequence: Option<Vec<Mode>>,
+}
+
+impl Default for OnlineSettings {
+    /// The paper's: 300 s, DDPM-256 with guidance 1.2 and noise factor 0.5.
+    fn default() -> Self {
+        Self {
+            time_budget_s: 300.0,
+            node_budget: 0,
+            sampler: SamplerConfig::default(),
+            sequence: None,
+        }
+    }
+}
+
+/// The task's mode limit per episode.
+pub fn mode_limit(task: SceneKind) -> usize {
+    match task {
+        SceneKind::Screwdriver => SCREWDRIVER_MODES,
+        SceneKind::Card => CARD_MODES,
+    }
+}
+
+/// Diffusion samples of `mode` from the current state of `hand`, as CSVTO particles of the
+/// mode's problem (the one `run_mode` builds: horizon, start and goal as there).
+pub fn diffusion_particles<H: Hand + ?Sized>(
+    models: &mut Models,
+    hand: &H,
+    model: &HandModel,
+    mode: Mode,
+    settings: &ExecSettings,
+    sampler: &SamplerConfig,
+    rng: &mut KernelRng,
+) -> anyhow::Result<Vec<Vec<f64>>> {
+    let task = hand.scene();
+    let start = hand_state(hand);
+    let problem = AllegroProblem::new(
+        model,
+        &ProblemSpec {
+            task,
+            mode,
+            horizon: settings.horizon,
+            start: start.clone(),
+            goal: mode_goal(mode, &start),
+        },
+    )?;
+    let engine = &mut models.denoiser;
+    let dims = DenoiserEngine::dims(engine);
+    if dims.horizon != settings.horizon + 1 {
+        bail!(
+            "the denoiser makes {} rows, CSVTO plans {} (+1)",
+            dims.horizon,
+            settings.horizon
+        );
+    }
+    let n = settings.particles;
+    let td = dims.floats_per_trajectory();
+    let f = dims.fingers;
+    let mut ctx1 = vec![0f32; f];
+    mode.contact_mode().write_signs(&mut ctx1);
+    let context: Vec<f32> = (0..n).flat_map(|_| ctx1.iter().copied()).collect();
+    let s0: Vec<f32> = contract_state(&start).iter().map(|&v| v as f32).collect();
+    let starts: Vec<f32> = (0..n).flat_map(|_| s0.iter().copied()).collect();
+    let chunk = n.min((engine.max_batch() / 2).max(1));
+    let layout = ScratchLayout::new(dims, chunk);
+    let mut buf = vec![0f32; layout.total()];
+    let mut scratch =
+        SamplerScratch::split(&mut buf, &layout).map_err(|e| anyhow!("sampler scratch: {e}"))?;
+    let mut out = vec![0f32; n * td];
+    sample(
+        engine,
+        sampler,
+        &SampleRequest {
+            context: &context,
+            start_states: Some(&starts),
+        },
+        rng,
+        &mut scratch,
+        &mut out,
+    )
+    .map_err(|e| anyhow!("diffusion initialisation of {}: {e:?}", mode.name()))?;
+    out.chunks_exact(td)
+        .map(|t| {
+            let rows: Vec<f64> = t.iter().map(|&v| f64::from(v)).collect();
+            from_contract(&problem, &rows)
+                .map_err(|e| anyhow!("diffused {} sample: {e}", mode.name()))
+        })
+        .collect()
+}
+
+/// The search settings of `method` for one call.
+fn search_config(
+    method: Method,
+    task: Task,
+    depth: u8,
+    settings: &OnlineSettings,
+    seed: u64,
+) -> SearchConfig {
+    let base = SearchConfig::for_task(task);
+    let mut c = SearchConfig {
+        max_depth: depth,
+        node_budget: settings.node_budget,
+        time_budget_ms: (settings.time_budget_s * 1e3)
+            .round()
+            .min(f64::from(u32::MAX)) as u32,
+        seed,
+        ..base
+    };
+    match method {
+        Method::DipsK1 => c.k = 1,
+        Method::DipsMaxLikelihood => c.variant = SearchVariant::MaxLikelihood,
+        _ => {}
+    }
+    c
+}
+
+/// One planning call from the hand's state.
+#[allow(clippy::too_many_arguments)]
+fn plan_call<H: Hand + ?Sized>(
+    session: &mut PaperSession,
+    prior: MarkovPrior,
+    method: Method,
+    hand: &H,
+    executed: &[Mode],
+    depth: u8,
+    settings: &OnlineSettings,
+    seed: u64,
+) -> anyhow::Result<(Vec<Mode>, PlanRecord)> {
+    let scene = hand.scene();
+    let task = scene.task();
+    let start: Vec<f32> = contract_state(&hand_state(hand))
+        .iter()
+        .map(|&v| v as f32)
+        .collect();
+    let goal = match (method, task) {
+        (Method::DipsNoReplan, Task::Screwdriver) => NO_REPLAN_YAW_GOAL,
+        _ => PlanSpec::paper_goal(task, &start).context("the state is too short")?,
+    };
+    let config = search_config(method, task, depth, settings, seed);
+    let mut spec = PlanSpec::with_settings(task, &start, goal, config, prior)
+        .map_err(|e| anyhow!("planning call: {e}"))?;
+    spec.sampler = settings.sampler;
+    spec.executed = executed.last().map(|m| m.id());
+    spec.check().map_err(|e| anyhow!("planning call: {e}"))?;
+    let t0 = Instant::now();
+    let report = session.plan(&spec, &mut StdClock(t0))?;
+    let seconds = t0.elapsed().as_secs_f64();
+    let modes: Vec<Mode> = report
+        .modes
+        .iter()
+        .filter_map(|&id: &ModeId| Mode::from_id(task, id))
+        .collect();
+    let record = PlanRecord {
+        executed: executed.len(),
+        goal,
+        modes: modes.iter().map(|m| m.name()).collect(),
+        status: format!("{:?}", report.status),
+        expected_terminal_state: report
+            .terminal_state
+            .iter()
+            .map(|&v| v.is_finite().then_some(v))
+            .collect(),
+        nodes_expanded: report.stats.nodes_expanded,
+        seconds,
+    };
+    Ok((modes, record))
+}
+
+/// Run one episode of `method` on `hand` from its current state. `models` is needed by every
+/// method but `csvto-sampled`; the prior is the models' fitted one, else the paper's.
+#[allow(clippy::too_many_arguments)]
+pub fn run_online<H: Hand + ?Sized>(
+    hand: &mut H,
+    method: Method,
+    seed: u64,
+    models: Option<Models>,
+    exec: &ExecSettings,
+    settings: &OnlineSettings,
+    progress: &mut dyn FnMut(&str),
+) -> anyhow::Result<EpisodeResult> {
+    let scene = hand.scene();
+    let task = scene.task();
+    let model = HandModel::allegro_v4();
+    let limit = mode_limit(scene);
+    let mut rng = KernelRng::seed_from_u64(seed);
+    let mut sampler_rng = KernelRng::seed_from_u64(seed ^ 0xd1ff_0510);
+    let mut session = match (models, method.needs_models()) {
+        (Some(m), _) => Some(PaperSession::new(m)),
+        (None, true) => bail!("method `{}` needs the diffusion models", method.name()),
+        (None, false) => None,
+    };
+    let prior = match session.as_mut().and_then(|s| s.models_mut().prior) {
+        Some(p) => p,
+        None => MarkovPrior::paper(task, SearchConfig::for_task(task).p_min)
+            .map_err(|e| anyhow!("{e}"))?,
+    };
+    let start = hand_state(hand);
+    let mut valid = pose_valid(scene, &hand.object_pose());
+    let mut runs = Vec::new();
+    let mut executed: Vec<Mode> = Vec::new();
+    let mut plans = Vec::new();
+    let mut planning_s = Vec::new();
+    let mut step_s = Vec::new();
+    if method.searches() && settings.sequence.is_some() {
+        bail!(
+            "method `{}` plans its own modes; a given sequence is for dips-sampled and csvto-sampled",
+            method.name()
+        );
+    }
+    let mut queue: Vec<Mode> = if method.searches() {
+        Vec::new()
+    } else {
+        settings
+            .sequence
+            .clone()
+            .unwrap_or_else(|| prior_sequence_for_seed(scene, seed))
+    };
+    let limit = if method.searches() {
+        limit
+    } else {
+        queue.len()
+    };
+    queue.reverse();
+    while executed.len() < limit {
+        if method.searches() && (method != Method::DipsNoReplan || plans.is_empty()) {
+            let Some(session) = session.as_mut() else {
+                bail!("method `{}` needs the diffusion models", method.name());
+            };
+            let depth = match scene {
+                SceneKind::Screwdriver => SCREWDRIVER_MODES,
+                SceneKind::Card => limit - executed.len(),
+            } as u8;
+            progress(&format!(
+                "planning call {} (depth {depth})",
+                plans.len() + 1
+            ));
+            let call_seed = seed.wrapping_mul(1000).wrapping_add(plans.len() as u64);
+            let (modes, record) = plan_call(
+                session, prior, method, hand, &executed, depth, settings, call_seed,
+            )?;
+            progress(&format!(
+                "  {} in {:.1} s: {}",
+                record.status,
+                record.seconds,
+                record.modes.join(", ")
+            ));
+            planning_s.push(record.seconds);
+            plans.push(record);
+            queue = modes;
+            queue.reverse();
+        }
+        let Some(mode) = queue.pop() else {
+            break;
+        };
+        if method.searches() && method != Method::DipsNoReplan {
+            queue.clear();
+        }
+        progress(&format!(
+            "mode {}/{limit}: {}",
+            executed.len() + 1,
+            mode.name()
+        ));
+        let initial = match session.as_mut() {
+            Some(s) if method != Method::CsvtoSampled => Some(diffusion_particles(
+                s.models_mut(),
+                hand,
+                &model,
+                mode,
+                exec,
+                &settings.sampler,
+                &mut sampler_rng,
+            )?),
+            _ => None,
+        };
+        let run = run_mode(hand, &model, mode, exec, initial, &mut rng, progress)?;
+        valid &= run.steps.iter().all(|s| s.valid);
+        step_s.extend(run.solve_times());
+        runs.push(run);
+        executed.push(mode);
+    }
+    let end = hand_state(hand);
+    let mut result = EpisodeResult::assemble(
+        scene,
+        method.name(),
+        seed,
+        &start,
+        &end,
+        runs,
+        planning_s,
+        step_s,
+        valid,
+    );
+    result.plans = plans;
+    Ok(result)
+}

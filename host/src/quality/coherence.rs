@@ -1,0 +1,198 @@
+//! Physical coherence of trajectories in the contract layout: do the joint deltas agree with
+//! the next row's joints, are the joints within their limits, are the contact forces inside the
+//! friction cone, and do regrasping fingers keep clear of the object.
+
+use dips_kernel::mode::Task;
+use serde::Serialize;
+
+use crate::kinematics::HandModel;
+use crate::problems::allegro::{PLANNER_FRICTION, REGRASP_CLEARANCE};
+use crate::problems::{AllegroProblem, Mode, ProblemSpec};
+use crate::scenes::SceneKind;
+
+/// Summary of a distribution.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, serde::Deserialize)]
+pub struct Dist {
+    /// Values summarised.
+    pub n: usize,
+    /// Mean.
+    pub mean: f64,
+    /// Median.
+    pub p50: f64,
+    /// 90th percentile.
+    pub p90: f64,
+    /// Largest value.
+    pub max: f64,
+}
+
+impl Dist {
+    /// The summary of `v` (all zero when empty).
+    pub fn of(mut v: Vec<f64>) -> Self {
+        if v.is_empty() {
+            return Self {
+                n: 0,
+                mean: 0.0,
+                p50: 0.0,
+                p90: 0.0,
+                max: 0.0,
+            };
+        }
+        v.sort_by(f64::total_cmp);
+        let q = |p: f64| v[((v.len() - 1) as f64 * p).round() as usize];
+        Self {
+            n: v.len(),
+            mean: v.iter().sum::<f64>() / v.len() as f64,
+            p50: q(0.5),
+            p90: q(0.9),
+            max: v[v.len() - 1],
+        }
+    }
+}
+
+/// Coherence figures of a set of trajectories.
+#[derive(Debug, Clone, PartialEq, Serialize, serde::Deserialize)]
+pub struct Coherence {
+    /// `|q_{r+1} − (q_r + Δq_r)|` per joint entry, rows `0 … T−2` (rad).
+    pub dq_residual_rad: Dist,
+    /// Fraction of joint entries outside the hand's limits.
+    pub joints_outside_limits: f64,
+    /// Largest distance of a joint beyond its limit (rad).
+    pub joint_limit_excess_max_rad: f64,
+    /// Friction-cone excess `max(0, ‖f_t‖ − μ·(−n·f))` of every contact finger's force at rows
+    /// `0 … T−2`, with the outward normal at the next row's state and the planner's μ (N).
+    pub friction_excess_n: Dist,
+    /// Fraction of those forces whose excess is above 0.05 N.
+    pub friction_violations: f64,
+    /// Regrasp modes only: signed distance of the lifted fingers at rows `1 … T−2` (m).
+    pub lifted_sdf_m: Dist,
+    /// Fraction of those rows with `sdf ≥ δ` (δ = 1.5 cm).
+    pub lifted_clear: f64,
+}
+
+/// The world state `[q, a, b, angle]` of a contract row's state columns.
+pub fn world_state(task: Task, row: &[f32]) -> Vec<f64> {
+    let l = task.layout();
+    let mut s: Vec<f64> = row[..l.joints()].iter().map(|&v| f64::from(v)).collect();
+    if let Some(p) = l.pose(row) {
+        s.extend(p.iter().map(|&v| f64::from(v)));
+    }
+    s
+}
+
+/// Measure `trajs` (`[n, T, D]` raw contract rows) with their contexts `[n, F]`.
+pub fn measure(scene: SceneKind, hand: &HandModel, trajs: &[f32], contexts: &[f32]) -> Coherence {
+    let task = scene.task();
+    let dims = task.dims();
+    let l = task.layout();
+    let (t, d, f) = (dims.horizon, dims.dim(), dims.fingers);
+    let fingers = scene.task_fingers();
+    let mut dq_res = Vec::new();
+    let (mut outside, mut joint_entries, mut excess_max) = (0usize, 0usize, 0f64);
+    let mut friction = Vec::new();
+    let mut lifted = Vec::new();
+    for (traj, ctx) in trajs.chunks_exact(t * d).zip(contexts.chunks_exact(f)) {
+        let rows: Vec<&[f32]> = traj.chunks_exact(d).collect();
+        // Joints and limits.
+        for row in &rows {
+            for (i, fg) in fingers.iter().enumerate() {
+                let lim = hand.joint_limits(*fg);
+                for (k, (lo, hi)) in lim.iter().enumerate() {
+                    let q = f64::from(row[4 * i + k]);
+                    let ex = (lo - q).max(q - hi).max(0.0);
+                    joint_entries += 1;
+                    if ex > 0.0 {
+                        outside += 1;
+                        excess_max = excess_max.max(ex);
+                    }
+                }
+            }
+        }
+        for r in 0..t - 1 {
+            for i in 0..f {
+                for k in 0..4 {
+                    let q0 = f64::from(rows[r][4 * i + k]);
+                    let q1 = f64::from(rows[r + 1][4 * i + k]);
+                    let dq = f64::from(rows[r][l.dq_col(i, k)]);
+                    dq_res.push((q1 - q0 - dq).abs());
+                }
+            }
+        }
+        // Geometry needs the mode's problem (normals, signed distances).
+        let signs: Vec<i8> = ctx.iter().map(|&c| if c > 0.0 { 1 } else { -1 }).collect();
+        let Some(mode) = task
+            .modes()
+            .iter()
+            .find(|m| (0..f).all(|i| m.mode.in_contact(i) == (signs[i] > 0)))
+            .map(|m| m.named)
+        else {
+            continue;
+        };
+        let Some(problem) = problem_for(scene, hand, mode, t - 1, &world_state(task, rows[0]))
+        else {
+            continue;
+        };
+        for r in 0..t - 1 {
+            let next = world_state(task, rows[r + 1]);
+            let o = [next[4 * f], next[4 * f + 1], next[4 * f + 2]];
+            for i in 0..f {
+                let q: [f64; 4] = std::array::from_fn(|k| next[4 * i + k]);
+                if signs[i] > 0 {
+                    let n = problem.contact_normal(i, &q, &o);
+                    let c = l.force_col(i);
+                    let fv = [0, 1, 2].map(|k| f64::from(rows[r][c + k]));
+                    let fn_ = -(n[0] * fv[0] + n[1] * fv[1] + n[2] * fv[2]);
+                    let ft = [0, 1, 2].map(|k| fv[k] + fn_ * n[k]);
+                    let ftn = (ft[0] * ft[0] + ft[1] * ft[1] + ft[2] * ft[2]).sqrt();
+                    friction.push((ftn - PLANNER_FRICTION * fn_).max(0.0));
+                } else if r + 1 < t - 1 {
+                    lifted.push(problem.finger_sdf(i, &q, &o));
+                }
+            }
+        }
+    }
+    let clear = if lifted.is_empty() {
+        0.0
+    } else {
+        lifted.iter().filter(|&&s| s >= REGRASP_CLEARANCE).count() as f64 / lifted.len() as f64
+    };
+    let viol = if friction.is_empty() {
+        0.0
+    } else {
+        friction.iter().filter(|&&e| e > 0.05).count() as f64 / friction.len() as f64
+    };
+    Coherence {
+        dq_residual_rad: Dist::of(dq_res),
+        joints_outside_limits: outside as f64 / joint_entries.max(1) as f64,
+        joint_limit_excess_max_rad: excess_max,
+        friction_excess_n: Dist::of(friction),
+        friction_violations: viol,
+        lifted_sdf_m: Dist::of(lifted),
+        lifted_clear: clear,
+    }
+}
+
+/// The CSVTO problem of `mode` from `start` (world units), for its geometry.
+fn problem_for(
+    scene: SceneKind,
+    hand: &HandModel,
+    mode: Mode,
+    horizon: usize,
+    start: &[f64],
+) -> Option<AllegroProblem> {
+    let goal = [
+        start[start.len() - 3],
+        start[start.len() - 2],
+        start[start.len() - 1],
+    ];
+    AllegroProblem::new(
+        hand,
+        &ProblemSpec {
+            task: scene,
+            mode,
+            horizon,
+            start: start.to_vec(),
+            goal,
+        },
+    )
+    .ok()
+}

@@ -1,0 +1,422 @@
+//! How good trained models are, measured the way the planner uses them (issue 11 §5):
+//! physical coherence of diffused trajectories beside held-out real ones ([`coherence`]),
+//! diffused mode trajectories executed open loop in the world, and the regrasp clearance.
+//! `dips model quality` runs it and writes the figures into the model card.
+//!
+//! Every trajectory is conditioned on a real start state and contact mode from the demos the
+//! models were **not** trained on (`held_out_seeds` of `train_report.json`).
+
+pub mod coherence;
+
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use anyhow::{Context, bail};
+use dips_dataset::{Dataset, DemoRecord};
+use dips_kernel::diffusion::{SampleRequest, SamplerConfig, SamplerScratch, ScratchLayout, sample};
+use dips_kernel::engine::DenoiserEngine;
+use dips_kernel::mode::Task;
+use dips_kernel::rng::KernelRng;
+use dips_onnx::{AnyEngine, EngineKind, Expectation, Role};
+use serde::Serialize;
+
+use crate::planning::model_file;
+use crate::scenes::SceneKind;
+use crate::world::World;
+pub use coherence::{Coherence, Dist, world_state};
+
+/// Settings of a quality run.
+#[derive(Debug, Clone)]
+pub struct QualityOptions {
+    /// Held-out trajectories per set (evenly spread over the held-out demos).
+    pub trajectories: usize,
+    /// DDIM step counts to measure beside DDPM.
+    pub ddim_steps: Vec<u16>,
+    /// Open-loop executions (one per held-out start of an object-moving mode, up to this many).
+    pub open_loop_trials: usize,
+    /// Seed of the samplers.
+    pub seed: u64,
+    /// Engine that runs the denoiser.
+    pub engine: EngineKind,
+}
+
+impl Default for QualityOptions {
+    fn default() -> Self {
+        Self {
+            trajectories: 256,
+            ddim_steps: vec![8, 32],
+            open_loop_trials: 10,
+            seed: 0,
+            engine: EngineKind::Kernel,
+        }
+    }
+}
+
+/// One set of trajectories and its figures.
+#[derive(Debug, Clone, Serialize, serde::Deserialize)]
+pub struct SetQuality {
+    /// `real`, `ddpm-256`, `ddim-8`, ...
+    pub name: String,
+    /// Trajectories measured.
+    pub trajectories: usize,
+    /// Seconds to sample them (0 for real data).
+    pub sample_seconds: f64,
+    /// The figures.
+    pub coherence: Coherence,
+}
+
+/// Progress that counts as moving the object toward the goal: 0.01 rad of yaw, 1 mm of card.
+pub fn progress_threshold(scene: SceneKind) -> f64 {
+    match scene {
+        SceneKind::Screwdriver => 0.01,
+        SceneKind::Card => 0.001,
+    }
+}
+
+/// One open-loop execution of a diffused trajectory.
+#[derive(Debug, Clone, Serialize, serde::Deserialize)]
+pub struct OpenLoopTrial {
+    /// Demo seed and mode the start state came from.
+    pub demo_seed: u64,
+    /// Mode executed.
+    pub mode: String,
+    /// Object progress: Δyaw (rad, clockwise negative) or Δy of the card (m).
+    pub progress: f64,
+    /// Whether it moved the object toward the goal (progress below minus
+    /// [`progress_threshold`]).
+    pub toward_goal: bool,
+    /// The progress of CSVTO's own first plan from the same state, executed the same way.
+    pub real_progress: f64,
+    /// Whether the object stayed valid.
+    pub valid: bool,
+}
+
+/// Open-loop figures.
+#[derive(Debug, Clone, Serialize, serde::Deserialize)]
+pub struct OpenLoop {
+    /// Sampler used (DDPM-256, the planner's).
+    pub sampler: String,
+    /// The trials.
+    pub trials: Vec<OpenLoopTrial>,
+    /// How many moved the object toward the goal.
+    pub toward_goal: usize,
+    /// The same executions with the real (CSVTO-planned) first step's plan, for reference:
+    /// how many moved the object toward the goal.
+    pub real_toward_goal: usize,
+}
+
+/// Everything `dips model quality` measures.
+#[derive(Debug, Clone, Serialize, serde::Deserialize)]
+pub struct QualityReport {
+    /// The task.
+    pub task: String,
+    /// Models measured.
+    pub models_dir: PathBuf,
+    /// Dataset the start states came from.
+    pub data_dir: PathBuf,
+    /// Demo seeds used (held out from training).
+    pub held_out_seeds: Vec<u64>,
+    /// Real and diffused sets.
+    pub sets: Vec<SetQuality>,
+    /// Diffused object-moving modes executed open loop.
+    pub open_loop: OpenLoop,
+    /// Engine that ran the denoiser.
+    pub engine: String,
+}
+
+/// Held-out trajectories: `[n, T, D]` raw rows, contexts, and (demo seed, mode) per row.
+struct Held {
+    x: Vec<f32>,
+    context: Vec<f32>,
+    n: usize,
+}
+
+fn held_out(ds: &Dataset, seeds: &[u64], k: usize) -> Held {
+    let task = ds.task;
+    let dims = task.dims();
+    let (td, f) = (dims.floats(), dims.fingers);
+    let demos: Vec<&DemoRecord> = ds
+        .demos
+        .iter()
+        .filter(|d| seeds.contains(&d.seed))
+        .collect();
+    let total: usize = demos.iter().map(|d| d.len()).sum();
+    let k = k.min(total);
+    let mut h = Held {
+        x: Vec::with_capacity(k * td),
+        context: Vec::with_capacity(k * f),
+        n: 0,
+    };
+    let flat: Vec<(&DemoRecord, usize)> = demos
+        .iter()
+        .flat_map(|d| (0..d.len()).map(move |i| (*d, i)))
+        .collect();
+    for j in 0..k {
+        let (d, i) = flat[j * total / k];
+        h.x.extend_from_slice(d.trajectory(i));
+        h.context.extend_from_slice(d.context(i));
+        h.n += 1;
+    }
+    h
+}
+
+/// Sample one trajectory per (context, start row) with `config`.
+fn sample_like(
+    engine: &mut AnyEngine,
+    config: &SamplerConfig,
+    task: Task,
+    x: &[f32],
+    context: &[f32],
+    seed: u64,
+) -> anyhow::Result<Vec<f32>> {
+    let dims = task.dims();
+    let (td, sd) = (dims.floats(), dims.state_dim);
+    let n = x.len() / td;
+    let starts: Vec<f32> = (0..n)
+        .flat_map(|i| x[i * td..i * td + sd].iter().copied())
+        .collect();
+    let chunk = 48.min(engine.max_batch() / 2).max(1);
+    let layout = ScratchLayout::new(DenoiserEngine::dims(engine), chunk);
+    let mut buf = vec![0f32; layout.total()];
+    let mut scratch = SamplerScratch::split(&mut buf, &layout)
+        .map_err(|e| anyhow::anyhow!("sampler scratch: {e}"))?;
+    let mut out = vec![0f32; n * td];
+    let mut rng = KernelRng::seed_from_u64(seed);
+    sample(
+        engine,
+        config,
+        &SampleRequest {
+            context,
+            start_states: Some(&starts),
+        },
+        &mut rng,
+        &mut scratch,
+        &mut out,
+    )
+    .map_err(|e| anyhow::anyhow!("sampling failed: {e:?}"))?;
+    Ok(out)
+}
+
+/// The first plan of every held-out execution of an object-moving mode: `(demo seed, mode
+/// name, trajectory)` (online step 0, particle 0: the start state and CSVTO's first plan).
+fn moving_starts(
+    ds: &Dataset,
+    seeds: &[u64],
+    limit: usize,
+) -> Vec<(u64, String, Vec<f32>, Vec<f32>)> {
+    let task = ds.task;
+    let mut out = Vec::new();
+    for d in ds.demos.iter().filter(|d| seeds.contains(&d.seed)) {
+        for i in 0..d.len() {
+            if d.step[i] != 0 || d.particle[i] != 0 {
+                continue;
+            }
+            let name = &d.modes[d.mode_index[i] as usize];
+            let moves = task
+                .mode_by_name(name)
+                .ok()
+                .and_then(|id| task.modes().get(id.index()))
+                .is_some_and(|m| m.named.moves_object());
+            if moves && out.len() < limit {
+                out.push((
+                    d.seed,
+                    name.clone(),
+                    d.trajectory(i).to_vec(),
+                    d.context(i).to_vec(),
+                ));
+            }
+        }
+    }
+    out
+}
+
+/// Execute the joint deltas of `traj` open loop from its row 0 state; returns (progress, valid).
+fn execute(scene: SceneKind, traj: &[f32]) -> anyhow::Result<(f64, bool)> {
+    let task = scene.task();
+    let dims = task.dims();
+    let (t, d) = (dims.horizon, dims.dim());
+    let l = task.layout();
+    let mut world = World::new(scene);
+    let start = world_state(task, &traj[..d]);
+    world.set_state(&start)?;
+    world.resolve_penetration();
+    let before = world.state();
+    let mut valid = world.valid();
+    for r in 0..t - 1 {
+        let row = &traj[r * d..(r + 1) * d];
+        let dq: Vec<f64> = (0..dims.fingers)
+            .flat_map(|i| (0..4).map(move |k| (i, k)))
+            .map(|(i, k)| f64::from(row[l.dq_col(i, k)]))
+            .collect();
+        world.step_action(&dq)?;
+        valid &= world.valid();
+    }
+    let after = world.state();
+    let n = after.len();
+    let progress = match scene {
+        SceneKind::Screwdriver => {
+            let dy = after[n - 1] - before[n - 1];
+            dy.sin().atan2(dy.cos())
+        }
+        SceneKind::Card => after[n - 2] - before[n - 2],
+    };
+    Ok((progress, valid))
+}
+
+/// Measure the models in `models_dir` against the held-out demos of the dataset in `data_dir`.
+pub fn measure(
+    scene: SceneKind,
+    models_dir: &Path,
+    data_dir: &Path,
+    held_out_seeds: &[u64],
+    opts: &QualityOptions,
+    mut progress: impl FnMut(&str),
+) -> anyhow::Result<QualityReport> {
+    let task = scene.task();
+    let ds = dips_dataset::read_dir(data_dir, task)?;
+    if held_out_seeds.is_empty() {
+        bail!(
+            "no held-out demo seeds: quality is measured on demos the models were not trained on"
+        );
+    }
+    let missing: Vec<u64> = held_out_seeds
+        .iter()
+        .copied()
+        .filter(|s| !ds.demos.iter().any(|d| d.seed == *s))
+        .collect();
+    if !missing.is_empty() {
+        bail!(
+            "{} holds no demo with seed(s) {missing:?} (the models' held-out demos)",
+            data_dir.display()
+        );
+    }
+    let file = models_dir.join(model_file(Role::Denoiser));
+    let mut engine = AnyEngine::load(
+        opts.engine,
+        &file,
+        &Expectation::new(Role::Denoiser, task.name()),
+    )
+    .with_context(|| format!("loading {}", file.display()))?;
+    let world = World::new(scene);
+    let hand = world.hand_model().clone();
+    let held = held_out(&ds, held_out_seeds, opts.trajectories);
+    let mut sets = vec![SetQuality {
+        name: "real".into(),
+        trajectories: held.n,
+        sample_seconds: 0.0,
+        coherence: coherence::measure(scene, &hand, &held.x, &held.context),
+    }];
+    let steps = DenoiserEngine::dims(&engine).diffusion_steps;
+    let mut configs = vec![(format!("ddpm-{steps}"), SamplerConfig::default())];
+    for &s in &opts.ddim_steps {
+        configs.push((format!("ddim-{s}"), SamplerConfig::ddim(s)));
+    }
+    for (name, config) in &configs {
+        progress(&format!("sampling {} {name} trajectories", held.n));
+        let t0 = Instant::now();
+        let x = sample_like(&mut engine, config, task, &held.x, &held.context, opts.seed)?;
+        sets.push(SetQuality {
+            name: name.clone(),
+            trajectories: held.n,
+            sample_seconds: t0.elapsed().as_secs_f64(),
+            coherence: coherence::measure(scene, &hand, &x, &held.context),
+        });
+    }
+    progress("open-loop executions");
+    let starts = moving_starts(&ds, held_out_seeds, opts.open_loop_trials);
+    let mut trials = Vec::new();
+    let mut real_toward = 0;
+    for (j, (seed, mode, real, ctx)) in starts.iter().enumerate() {
+        let diffused = sample_like(
+            &mut engine,
+            &SamplerConfig::default(),
+            task,
+            real,
+            ctx,
+            opts.seed.wrapping_add(1000 + j as u64),
+        )?;
+        let (progress, valid) = execute(scene, &diffused)?;
+        let (real_progress, _) = execute(scene, real)?;
+        let eps = progress_threshold(scene);
+        real_toward += usize::from(real_progress < -eps);
+        trials.push(OpenLoopTrial {
+            demo_seed: *seed,
+            mode: mode.clone(),
+            progress,
+            toward_goal: progress < -eps,
+            real_progress,
+            valid,
+        });
+    }
+    Ok(QualityReport {
+        task: task.name().into(),
+        models_dir: models_dir.to_path_buf(),
+        data_dir: data_dir.to_path_buf(),
+        held_out_seeds: held_out_seeds.to_vec(),
+        open_loop: OpenLoop {
+            sampler: format!("ddpm-{steps}"),
+            toward_goal: trials.iter().filter(|t| t.toward_goal).count(),
+            trials,
+            real_toward_goal: real_toward,
+        },
+        sets,
+        engine: format!("{:?}", opts.engine).to_lowercase(),
+    })
+}
+
+/// The report as Markdown (the model card's quality section).
+pub fn markdown(r: &QualityReport) -> String {
+    let mut s = String::new();
+    s.push_str(&format!(
+        "Held-out demos (seeds {:?}), {} trajectories per set, each conditioned on a real start \
+         state and contact mode; denoiser run by the {} engine.\n\n",
+        r.held_out_seeds,
+        r.sets.first().map_or(0, |x| x.trajectories),
+        r.engine
+    ));
+    s.push_str(
+        "| set | sample time | Δq residual mean / p90 (rad) | joints outside limits | friction excess mean / p90 (N) | forces outside cone (> 0.05 N) | lifted-finger sdf p50 (cm) | lifted rows with sdf ≥ 1.5 cm |\n|---|---|---|---|---|---|---|---|\n",
+    );
+    for set in &r.sets {
+        let c = &set.coherence;
+        s.push_str(&format!(
+            "| {} | {:.1} s | {:.4} / {:.4} | {:.2} % | {:.3} / {:.3} | {:.1} % | {:.2} | {:.1} % |\n",
+            set.name,
+            set.sample_seconds,
+            c.dq_residual_rad.mean,
+            c.dq_residual_rad.p90,
+            100.0 * c.joints_outside_limits,
+            c.friction_excess_n.mean,
+            c.friction_excess_n.p90,
+            100.0 * c.friction_violations,
+            100.0 * c.lifted_sdf_m.p50,
+            100.0 * c.lifted_clear,
+        ));
+    }
+    let o = &r.open_loop;
+    let (unit, eps) = if r.task == "screwdriver" {
+        ("rad (Δyaw)", "0.01 rad")
+    } else {
+        ("m (Δy)", "1 mm")
+    };
+    s.push_str(&format!(
+        "\nOpen loop ({}): {} of {} diffused object-moving trajectories moved the object toward \
+         the goal by more than {eps} (CSVTO's own first plans from the same states: {} of {}). \
+         Progress in {unit}:\n\n",
+        o.sampler,
+        o.toward_goal,
+        o.trials.len(),
+        o.real_toward_goal,
+        o.trials.len()
+    ));
+    s.push_str(
+        "| demo | mode | diffused progress | toward goal | valid | CSVTO plan's progress |\n|---|---|---|---|---|---|\n",
+    );
+    for t in &o.trials {
+        s.push_str(&format!(
+            "| {} | {} | {:+.4} | {} | {} | {:+.4} |\n",
+            t.demo_seed, t.mode, t.progress, t.toward_goal, t.valid, t.real_progress
+        ));
+    }
+    s
+}

@@ -1,0 +1,43 @@
+#!/usr/bin/env bash
+# Regenerate the shipped models (onnx/models/<task>/) from nothing, on this machine:
+#   1. dips datagen   CSVTO demos in the world (both cores per task)
+#   2. dips train     prior.json, denoiser.onnx, discriminator.onnx (one core per task; the
+#                     two tasks train side by side)
+#   3. dips model quality / card   figures on the held-out demos, MODEL_CARD.md
+# Every step resumes after a kill: rerun the script. About 1 h 40 min on 2 cores
+# (docs/training.md, "Shipped models"). Settings: onnx/models/<task>/settings.json.
+#
+# Environment: DEMOS_SCREWDRIVER (default 40), DEMOS_CARD (default 48), WORK (default
+# target/models-work: datasets, checkpoints and logs; not committed).
+set -euo pipefail
+cd "$(dirname "$0")/.."
+WORK=${WORK:-target/models-work}
+declare -A DEMOS=([screwdriver]=${DEMOS_SCREWDRIVER:-40} [card]=${DEMOS_CARD:-48})
+mkdir -p "$WORK/logs"
+
+cargo build --release -p dips-cli
+DIPS=target/release/dips
+
+for task in screwdriver card; do
+  echo "== datagen $task (${DEMOS[$task]} demos)"
+  "$DIPS" datagen --task "$task" --demos "${DEMOS[$task]}" --out "$WORK/data/$task"
+done
+
+pids=()
+for task in screwdriver card; do
+  echo "== train $task (log: $WORK/logs/train-$task.log)"
+  "$DIPS" train --task "$task" --data "$WORK/data/$task" --out "$WORK/models/$task" \
+    --settings "onnx/models/$task/settings.json" --quiet > "$WORK/logs/train-$task.log" 2>&1 &
+  pids+=($!)
+done
+for p in "${pids[@]}"; do wait "$p"; done
+
+for task in screwdriver card; do
+  out="onnx/models/$task"
+  for f in denoiser.onnx discriminator.onnx prior.json train_report.json; do
+    cp "$WORK/models/$task/$f" "$out/$f"
+  done
+  echo "== quality $task"
+  "$DIPS" model quality --task "$task" --models "$out" --data "$WORK/data/$task"
+  "$DIPS" model card --task "$task" --models "$out" --command "scripts/make-models.sh"
+done
