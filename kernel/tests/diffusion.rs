@@ -223,24 +223,30 @@ fn assert_moments(engine: &GaussianDenoiser, out: &[f32], ctx: &[f32], w: f32, s
     });
 }
 
-/// Standard deviation DDIM (η = 0, `steps` steps) must produce for entry (r, j).
+/// What DDIM (η = 0, `steps` steps, "leading" spacing) must produce for entry (r, j): the
+/// standard deviation and the pull of the mean toward the normalisation mean.
 ///
-/// With the exact ε-predictor of Gaussian data, each DDIM step is the linear map
-/// `x ← k·x` (about the mean) with `k = (√(ᾱ'ᾱ)·b² + √((1−ᾱ')(1−ᾱ))) / (ᾱb² + 1 − ᾱ)`, which
-/// shrinks the spread a little on every coarse step; the sampler must match that exactly.
-fn ddim_std(engine: &GaussianDenoiser, r: usize, j: usize, steps: usize) -> f64 {
+/// With the exact ε-predictor of Gaussian data (normalised mean `a`, std `b`), each DDIM step
+/// is the linear map `x − √ᾱ'a ← k·(x − √ᾱa)` with
+/// `k = (√(ᾱ'ᾱ)·b² + √((1−ᾱ')(1−ᾱ))) / (ᾱb² + 1 − ᾱ)`. The loop starts from `N(0, 1)` at
+/// `t_s = ⌊(S−1)N/S⌋`, not from the true `x_{t_s}`: the sample's std is `K = Πk` (normalised)
+/// and its mean `a·(1 − K√ᾱ_{t_s})`, which the sampler must match exactly.
+fn ddim_moments(engine: &GaussianDenoiser, r: usize, j: usize, steps: usize) -> (f64, f64) {
     let ab = &engine.alpha_bar;
     let b = f64::from(engine.sigma[r][j] / engine.std[j]);
     let mut s = 1.0;
-    for i in (1..=steps).rev() {
-        let t = i * STEPS / steps - 1;
-        let an = ((i - 1) * STEPS / steps)
-            .checked_sub(1)
-            .map_or(1.0, |n| ab[n]);
+    for k in (0..steps).rev() {
+        let t = k * STEPS / steps;
+        let an = k.checked_sub(1).map_or(1.0, |n| ab[n * STEPS / steps]);
         let a = ab[t];
         s *= ((an * a).sqrt() * b * b + ((1.0 - an) * (1.0 - a)).sqrt()) / (a * b * b + 1.0 - a);
     }
-    s * f64::from(engine.std[j])
+    let start = ab[(steps - 1) * STEPS / steps];
+    (s * f64::from(engine.std[j]), s * start.sqrt())
+}
+
+fn ddim_std(engine: &GaussianDenoiser, r: usize, j: usize, steps: usize) -> f64 {
+    ddim_moments(engine, r, j, steps).0
 }
 
 fn assert_moments_with(
@@ -250,6 +256,20 @@ fn assert_moments_with(
     w: f32,
     std_tol: f64,
     want_std: impl Fn(usize, usize) -> f64,
+) {
+    assert_moments_pulled(engine, out, ctx, w, std_tol, want_std, |_, _| 0.0);
+}
+
+/// [`assert_moments_with`] where the mean is pulled toward the normalisation mean by the
+/// fraction `pull(r, j)`.
+fn assert_moments_pulled(
+    engine: &GaussianDenoiser,
+    out: &[f32],
+    ctx: &[f32],
+    w: f32,
+    std_tol: f64,
+    want_std: impl Fn(usize, usize) -> f64,
+    pull: impl Fn(usize, usize) -> f64,
 ) {
     for ctx0 in [1.0f32, -1.0] {
         for r in 0..T {
@@ -261,7 +281,9 @@ fn assert_moments_with(
                     continue;
                 }
                 let sigma = want_std(r, j);
-                let want = f64::from(engine.mu[r][j] + w * engine.delta[r][j] * ctx0);
+                let data = f64::from(engine.mu[r][j] + w * engine.delta[r][j] * ctx0);
+                let m = f64::from(engine.mean[j]);
+                let want = data - pull(r, j) * (data - m);
                 let se = sigma / (count as f64).sqrt();
                 assert!(
                     (mean - want).abs() < 5.0 * se + 0.01 * sigma,
@@ -320,9 +342,15 @@ fn ddim_is_deterministic_and_lands_on_the_data_mean() {
     let a = run(&mut engine, &config, &ctx, None, 5, 2000).unwrap();
     let b = run(&mut engine, &config, &ctx, None, 5, 2000).unwrap();
     assert!(a.iter().zip(&b).all(|(x, y)| x.to_bits() == y.to_bits()));
-    assert_moments_with(&engine, &a, &ctx, 1.0, 0.06, |r, j| {
-        ddim_std(&engine, r, j, 50)
-    });
+    assert_moments_pulled(
+        &engine,
+        &a,
+        &ctx,
+        1.0,
+        0.06,
+        |r, j| ddim_std(&engine, r, j, 50),
+        |r, j| ddim_moments(&engine, r, j, 50).1,
+    );
     // The coarse steps shrink the spread, but by little.
     assert!((ddim_std(&engine, 1, 0, 50) / 0.45 - 1.0).abs() < 0.15);
     // η = 0 draws only x_T: the map from x_T to the sample is deterministic, so a different
@@ -349,7 +377,8 @@ fn ddim_over_all_steps_with_eta_one_matches_ddpm_moments() {
 
 #[test]
 fn guidance_weight_scales_the_conditional_shift() {
-    // ε is linear in the data mean, so guidance w moves the mean to μ + w·δ·c exactly.
+    // ε is linear in the data mean, so guidance w moves the mean to μ + w·δ·c exactly (up to
+    // DDIM's known pull of the start, `ddim_moments`).
     let mut engine = GaussianDenoiser::new();
     let ctx = contexts(2000);
     let config = SamplerConfig {
@@ -361,9 +390,15 @@ fn guidance_weight_scales_the_conditional_shift() {
         ..SamplerConfig::default()
     };
     let out = run(&mut engine, &config, &ctx, None, 9, 2000).unwrap();
-    assert_moments_with(&engine, &out, &ctx, 2.0, 0.06, |r, j| {
-        ddim_std(&engine, r, j, 64)
-    });
+    assert_moments_pulled(
+        &engine,
+        &out,
+        &ctx,
+        2.0,
+        0.06,
+        |r, j| ddim_std(&engine, r, j, 64),
+        |r, j| ddim_moments(&engine, r, j, 64).1,
+    );
 }
 
 #[test]
@@ -436,11 +471,11 @@ fn ddim_visits_evenly_spaced_steps() {
     engine.record = true;
     run(&mut engine, &SamplerConfig::ddim(10), &ctx, None, 1, 2).unwrap();
     let ts: Vec<f32> = engine.calls.iter().map(|c| c.t[0]).collect();
-    // floor(i·256/10) − 1 for i = 10..1.
+    // floor(k·256/10) for k = 9..0 ("leading" spacing).
     assert_eq!(
         ts,
         vec![
-            255.0, 229.0, 203.0, 178.0, 152.0, 127.0, 101.0, 75.0, 50.0, 24.0
+            230.0, 204.0, 179.0, 153.0, 128.0, 102.0, 76.0, 51.0, 25.0, 0.0
         ]
     );
 }

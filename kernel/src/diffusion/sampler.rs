@@ -133,13 +133,16 @@ pub fn sample<E: DenoiserEngine>(
         }
         SamplingMethod::Ddim { steps: s, eta } => {
             let s = usize::from(s);
-            // Training steps visited: time_i = floor(i·N/S) − 1 for i = S, S−1, …, 1; the
-            // step from time_1 goes to the clean sample.
-            for i in (1..=s).rev() {
-                let t = (i * steps / s).saturating_sub(1);
-                let t_next = ((i - 1) * steps / s).checked_sub(1);
-                let k = StepCoefficients::ddim(t, t_next, scratch.alpha_bar, eta);
-                step(engine, config, request, rng, scratch, out, chunk, &k)?;
+            // Training steps visited ("leading" spacing): time_k = floor(k·N/S) for
+            // k = S−1, …, 0; the step from time_0 = 0 goes to the clean sample. With S = N
+            // these are DDPM's steps. Starting at N−1 instead (where ᾱ ≈ 4e-8 under the cosine
+            // schedule) makes the first x̂₀ = (x − √(1−ᾱ) ε̂)/√ᾱ hopelessly ill-conditioned for
+            // a few-step sampler (`docs/training.md`).
+            for k in (0..s).rev() {
+                let t = k * steps / s;
+                let t_next = k.checked_sub(1).map(|j| j * steps / s);
+                let c = StepCoefficients::ddim(t, t_next, scratch.alpha_bar, eta);
+                step(engine, config, request, rng, scratch, out, chunk, &c)?;
             }
         }
     }
