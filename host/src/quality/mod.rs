@@ -52,6 +52,20 @@ impl Default for QualityOptions {
     }
 }
 
+/// How the discriminator scores a set of trajectories.
+#[derive(Debug, Clone, Serialize, serde::Deserialize)]
+pub struct Scores {
+    /// `Ψ` (probability of real) over the set.
+    pub p_real: Dist,
+    /// Logit of `Ψ` over the set (ln p − ln(1 − p)).
+    pub logit: Dist,
+    /// Effective sample size of `Ψ`-normalised weights in consecutive groups of 16:
+    /// `(Σw)²/Σw²`, 16 when every sample weighs the same, 1 when one takes all. Meaningful
+    /// for [`QualityReport::particles`], whose groups share a start state and mode as a search
+    /// node's k = 16 particles do.
+    pub ess_of_16: Dist,
+}
+
 /// One set of trajectories and its figures.
 #[derive(Debug, Clone, Serialize, serde::Deserialize)]
 pub struct SetQuality {
@@ -63,6 +77,8 @@ pub struct SetQuality {
     pub sample_seconds: f64,
     /// The figures.
     pub coherence: Coherence,
+    /// The discriminator's view of the set.
+    pub scores: Scores,
 }
 
 /// Progress that counts as moving the object toward the goal: 0.01 rad of yaw, 1 mm of card.
@@ -105,6 +121,99 @@ pub struct OpenLoop {
     pub real_toward_goal: usize,
 }
 
+/// Wall time of one model call.
+#[derive(Debug, Clone, Serialize, serde::Deserialize)]
+pub struct InferenceTime {
+    /// `denoiser` or `discriminator`.
+    pub role: String,
+    /// `kernel` or `tract`.
+    pub engine: String,
+    /// Trajectories per call.
+    pub batch: usize,
+    /// Median over the calls (ms).
+    pub median_ms: f64,
+    /// Calls timed (after one warm-up call).
+    pub calls: usize,
+}
+
+/// Time both models on both engines at `batch` (random inputs, median of `calls`).
+fn inference_times(
+    models_dir: &Path,
+    task: Task,
+    batch: usize,
+    calls: usize,
+) -> anyhow::Result<Vec<InferenceTime>> {
+    use dips_kernel::engine::DiscriminatorEngine;
+    let mut out = Vec::new();
+    let dims = task.dims();
+    let (td, f) = (dims.floats(), dims.fingers);
+    let mut rng = KernelRng::seed_from_u64(7);
+    let mut x = vec![0f32; 2 * batch * td];
+    rng.fill_normal(&mut x);
+    let ctx: Vec<f32> = (0..2 * batch * f)
+        .map(|i| if i % 3 == 0 { -1.0 } else { 1.0 })
+        .collect();
+    let t: Vec<f32> = (0..2 * batch).map(|i| (i % 256) as f32).collect();
+    let mask: Vec<f32> = (0..2 * batch).map(|i| (i % 2) as f32).collect();
+    let median = |mut v: Vec<f64>| {
+        v.sort_by(f64::total_cmp);
+        v[v.len() / 2]
+    };
+    for kind in [EngineKind::Kernel, EngineKind::Tract] {
+        let name = format!("{kind:?}").to_lowercase();
+        let file = models_dir.join(model_file(Role::Denoiser));
+        let mut e = AnyEngine::load(kind, &file, &Expectation::new(Role::Denoiser, task.name()))?;
+        let mut eps = vec![0f32; batch * td];
+        let mut times = Vec::new();
+        for c in 0..=calls {
+            let t0 = Instant::now();
+            e.predict_eps(
+                batch,
+                &x[..batch * td],
+                &t[..batch],
+                &ctx[..batch * f],
+                &mask[..batch],
+                &mut eps,
+            )
+            .map_err(|err| anyhow::anyhow!("denoiser: {err:?}"))?;
+            if c > 0 {
+                times.push(t0.elapsed().as_secs_f64() * 1e3);
+            }
+        }
+        out.push(InferenceTime {
+            role: "denoiser".into(),
+            engine: name.clone(),
+            batch,
+            median_ms: median(times),
+            calls,
+        });
+        let file = models_dir.join(model_file(Role::Discriminator));
+        let mut e = AnyEngine::load(
+            kind,
+            &file,
+            &Expectation::new(Role::Discriminator, task.name()),
+        )?;
+        let mut p = vec![0f32; batch];
+        let mut times = Vec::new();
+        for c in 0..=calls {
+            let t0 = Instant::now();
+            e.p_real(batch, &x[..batch * td], &ctx[..batch * f], &mut p)
+                .map_err(|err| anyhow::anyhow!("discriminator: {err:?}"))?;
+            if c > 0 {
+                times.push(t0.elapsed().as_secs_f64() * 1e3);
+            }
+        }
+        out.push(InferenceTime {
+            role: "discriminator".into(),
+            engine: name,
+            batch,
+            median_ms: median(times),
+            calls,
+        });
+    }
+    Ok(out)
+}
+
 /// Everything `dips model quality` measures.
 #[derive(Debug, Clone, Serialize, serde::Deserialize)]
 pub struct QualityReport {
@@ -120,8 +229,13 @@ pub struct QualityReport {
     pub sets: Vec<SetQuality>,
     /// Diffused object-moving modes executed open loop.
     pub open_loop: OpenLoop,
+    /// Ψ on 16 groups of 16 DDPM samples, each group from one held-out start and mode (what
+    /// one search node holds).
+    pub particles: Scores,
     /// Engine that ran the denoiser.
     pub engine: String,
+    /// Both models on both engines at batch 96.
+    pub inference: Vec<InferenceTime>,
 }
 
 /// Held-out trajectories: `[n, T, D]` raw rows, contexts, and (demo seed, mode) per row.
@@ -158,6 +272,51 @@ fn held_out(ds: &Dataset, seeds: &[u64], k: usize) -> Held {
         h.n += 1;
     }
     h
+}
+
+/// Score raw trajectories with the discriminator.
+fn score(disc: &mut AnyEngine, x: &[f32], context: &[f32]) -> anyhow::Result<Scores> {
+    use dips_kernel::engine::DiscriminatorEngine;
+    let dims = DiscriminatorEngine::dims(disc);
+    let td = dims.floats_per_trajectory();
+    let f = dims.fingers;
+    let n = x.len() / td;
+    let mut xn = x.to_vec();
+    dips_kernel::diffusion::normalize_in_place(&DiscriminatorEngine::normalization(disc), &mut xn);
+    let mut p = vec![0f32; n];
+    let chunk = DiscriminatorEngine::max_batch(disc).clamp(1, 256);
+    let mut i = 0;
+    while i < n {
+        let b = (n - i).min(chunk);
+        disc.p_real(
+            b,
+            &xn[i * td..(i + b) * td],
+            &context[i * f..(i + b) * f],
+            &mut p[i..i + b],
+        )
+        .map_err(|e| anyhow::anyhow!("discriminator: {e:?}"))?;
+        i += b;
+    }
+    let logit: Vec<f64> = p
+        .iter()
+        .map(|&v| {
+            let v = f64::from(v).clamp(1e-30, 1.0 - 1e-12);
+            v.ln() - (1.0 - v).ln()
+        })
+        .collect();
+    let ess: Vec<f64> = p
+        .chunks_exact(16)
+        .map(|g| {
+            let s: f64 = g.iter().map(|&w| f64::from(w)).sum();
+            let s2: f64 = g.iter().map(|&w| f64::from(w) * f64::from(w)).sum();
+            if s2 > 0.0 { s * s / s2 } else { 0.0 }
+        })
+        .collect();
+    Ok(Scores {
+        p_real: Dist::of(p.iter().map(|&v| f64::from(v)).collect()),
+        logit: Dist::of(logit),
+        ess_of_16: Dist::of(ess),
+    })
 }
 
 /// Sample one trajectory per (context, start row) with `config`.
@@ -297,6 +456,13 @@ pub fn measure(
         &Expectation::new(Role::Denoiser, task.name()),
     )
     .with_context(|| format!("loading {}", file.display()))?;
+    let dfile = models_dir.join(model_file(Role::Discriminator));
+    let mut disc = AnyEngine::load(
+        opts.engine,
+        &dfile,
+        &Expectation::new(Role::Discriminator, task.name()),
+    )
+    .with_context(|| format!("loading {}", dfile.display()))?;
     let world = World::new(scene);
     let hand = world.hand_model().clone();
     let held = held_out(&ds, held_out_seeds, opts.trajectories);
@@ -305,6 +471,7 @@ pub fn measure(
         trajectories: held.n,
         sample_seconds: 0.0,
         coherence: coherence::measure(scene, &hand, &held.x, &held.context),
+        scores: score(&mut disc, &held.x, &held.context)?,
     }];
     let steps = DenoiserEngine::dims(&engine).diffusion_steps;
     let mut configs = vec![(format!("ddpm-{steps}"), SamplerConfig::default())];
@@ -320,8 +487,30 @@ pub fn measure(
             trajectories: held.n,
             sample_seconds: t0.elapsed().as_secs_f64(),
             coherence: coherence::measure(scene, &hand, &x, &held.context),
+            scores: score(&mut disc, &x, &held.context)?,
         });
     }
+    progress("particle groups");
+    let groups = 16.min(held.n);
+    let (td, f) = (task.dims().floats(), task.dims().fingers);
+    let mut gx = Vec::with_capacity(groups * 16 * td);
+    let mut gc = Vec::with_capacity(groups * 16 * f);
+    for g in 0..groups {
+        let i = g * held.n / groups;
+        for _ in 0..16 {
+            gx.extend_from_slice(&held.x[i * td..(i + 1) * td]);
+            gc.extend_from_slice(&held.context[i * f..(i + 1) * f]);
+        }
+    }
+    let gs = sample_like(
+        &mut engine,
+        &SamplerConfig::default(),
+        task,
+        &gx,
+        &gc,
+        opts.seed ^ 0x9a11,
+    )?;
+    let particles = score(&mut disc, &gs, &gc)?;
     progress("open-loop executions");
     let starts = moving_starts(&ds, held_out_seeds, opts.open_loop_trials);
     let mut trials = Vec::new();
@@ -360,7 +549,12 @@ pub fn measure(
             real_toward_goal: real_toward,
         },
         sets,
+        particles,
         engine: format!("{:?}", opts.engine).to_lowercase(),
+        inference: {
+            progress("inference times");
+            inference_times(models_dir, task, 96, 20)?
+        },
     })
 }
 
@@ -391,6 +585,37 @@ pub fn markdown(r: &QualityReport) -> String {
             100.0 * c.friction_violations,
             100.0 * c.lifted_sdf_m.p50,
             100.0 * c.lifted_clear,
+        ));
+    }
+    s.push_str(
+        "\nThe discriminator Ψ on the same sets:\n\n| set | Ψ median | Ψ p90 | logit median | logit p90 |\n|---|---|---|---|---|\n",
+    );
+    for set in &r.sets {
+        let c = &set.scores;
+        s.push_str(&format!(
+            "| {} | {:.3e} | {:.3e} | {:.1} | {:.1} |\n",
+            set.name, c.p_real.p50, c.p_real.p90, c.logit.p50, c.logit.p90
+        ));
+    }
+    let pw = &r.particles;
+    s.push_str(&format!(
+        "\nA search node holds k = 16 particles weighted by Ψ. Over 16 groups of 16 DDPM samples, \
+         each group from one held-out start and mode, the weights leave an effective sample size \
+         of {:.1} (median; p90 {:.1}, max {:.1}) of 16 (logits: median {:.1}, p90 {:.1}).\n",
+        pw.ess_of_16.p50, pw.ess_of_16.p90, pw.ess_of_16.max, pw.logit.p50, pw.logit.p90
+    ));
+    s.push_str("\nInference, one call at batch 96 (median of 20, this machine, single-threaded):\n\n| model | kernel interpreter | tract |\n|---|---|---|\n");
+    for role in ["denoiser", "discriminator"] {
+        let ms = |engine: &str| {
+            r.inference
+                .iter()
+                .find(|i| i.role == role && i.engine == engine)
+                .map_or("—".to_string(), |i| format!("{:.1} ms", i.median_ms))
+        };
+        s.push_str(&format!(
+            "| {role} | {} | {} |\n",
+            ms("kernel"),
+            ms("tract")
         ));
     }
     let o = &r.open_loop;

@@ -354,7 +354,7 @@ pub fn train_denoiser(
             Checkpoint {
                 params: params.clone(),
                 optim: optim.clone(),
-                meta: clock.stamp(&meta),
+                meta: clock.stamp(&meta, &recent),
             }
             .save(&ck_path)?;
         }
@@ -386,7 +386,7 @@ pub fn train_denoiser(
         held_out_loss_initial: initial,
         held_out_loss_raw,
         held_out_loss,
-        train_loss_final: recent.iter().sum::<f32>() / recent.len().max(1) as f32,
+        train_loss_final: clock.train_loss(&recent),
         step_time_s,
         seconds: clock.run_seconds(),
     };

@@ -180,33 +180,43 @@ pub fn auc(pos: &[f32], neg: &[f32]) -> f32 {
     ((rank_sum_pos - np * (np + 1.0) / 2.0) / (np * nn)) as f32
 }
 
-fn read_cache(path: &Path, key: &str, len: usize) -> Option<Vec<f32>> {
+/// The cached diffused trajectories of `key` and the seconds it took to sample them.
+fn read_cache(path: &Path, key: &str, len: usize) -> Option<(Vec<f32>, f64)> {
     let buf = std::fs::read(path).ok()?;
     let (_, md) = SafeTensors::read_metadata(&buf).ok()?;
-    if md.metadata().as_ref()?.get("key")? != key {
+    let meta = md.metadata().as_ref()?;
+    if meta.get("key")? != key {
         return None;
     }
+    let secs = meta
+        .get("seconds")
+        .and_then(|v| v.parse::<f64>().ok())
+        .unwrap_or(0.0);
     let st = SafeTensors::deserialize(&buf).ok()?;
     let v = st.tensor("fakes").ok()?;
     if v.dtype() != Dtype::F32 || v.data().len() != len * 4 {
         return None;
     }
-    Some(
+    Some((
         v.data()
             .chunks_exact(4)
             .map(|c| f32::from_le_bytes([c[0], c[1], c[2], c[3]]))
             .collect(),
-    )
+        secs,
+    ))
 }
 
-fn write_cache(path: &Path, key: &str, v: &[f32]) -> Result<()> {
+fn write_cache(path: &Path, key: &str, v: &[f32], seconds: f64) -> Result<()> {
     let bytes = dips_dataset::f32_bytes(v);
     let view =
         TensorView::new(Dtype::F32, vec![v.len()], &bytes).map_err(|e| TrainError::Checkpoint {
             path: path.to_path_buf(),
             reason: e.to_string(),
         })?;
-    let meta = HashMap::from([("key".to_string(), key.to_string())]);
+    let meta = HashMap::from([
+        ("key".to_string(), key.to_string()),
+        ("seconds".to_string(), seconds.to_string()),
+    ]);
     let buf = safetensors::serialize([("fakes", view)], Some(meta)).map_err(|e| {
         TrainError::Checkpoint {
             path: path.to_path_buf(),
@@ -257,16 +267,17 @@ fn pairs(
         s.noise_factor,
         s.guidance_weight
     );
-    let t0 = Instant::now();
-    let mut fake = match read_cache(cache, &key, real.x.len()) {
-        Some(v) => v,
+    // The seconds are the sampling's, also when the trajectories come from the cache.
+    let (mut fake, secs) = match read_cache(cache, &key, real.x.len()) {
+        Some(cached) => cached,
         None => {
+            let t0 = Instant::now();
             let v = diffuse_like(denoiser, &real, &config, seed, opts, what)?;
-            write_cache(cache, &key, &v)?;
-            v
+            let secs = t0.elapsed().as_secs_f64();
+            write_cache(cache, &key, &v, secs)?;
+            (v, secs)
         }
     };
-    let secs = t0.elapsed().as_secs_f64();
     let mut r = real.x;
     denoiser.norm.normalize(&mut r);
     denoiser.norm.normalize(&mut fake);
@@ -454,7 +465,7 @@ pub fn train_discriminator(
             Checkpoint {
                 params: params.clone(),
                 optim: optim.clone(),
-                meta: clock.stamp(&meta),
+                meta: clock.stamp(&meta, &recent),
             }
             .save(&ck_path)?;
         }
@@ -480,7 +491,7 @@ pub fn train_discriminator(
         steps: s.steps,
         resumed_from,
         sampling_s,
-        train_loss_final: recent.iter().sum::<f32>() / recent.len().max(1) as f32,
+        train_loss_final: clock.train_loss(&recent),
         held_out_loss,
         held_out_accuracy,
         held_out_auc,

@@ -42,6 +42,7 @@ pub(crate) fn bar(opts: &RunOptions, len: u64, prefix: &str) -> ProgressBar {
 pub(crate) struct RunClock {
     prior_run: f64,
     prior_loop: f64,
+    prior_loss: f32,
     started: std::time::Instant,
     loop_start: std::time::Instant,
 }
@@ -49,6 +50,7 @@ pub(crate) struct RunClock {
 impl RunClock {
     const RUN: &'static str = "run_seconds";
     const LOOP: &'static str = "loop_seconds";
+    const LOSS: &'static str = "train_loss_recent";
 
     /// Started now, with the times a checkpoint recorded (`None`: a fresh stage).
     pub(crate) fn start(
@@ -65,6 +67,10 @@ impl RunClock {
         Self {
             prior_run: get(Self::RUN),
             prior_loop: get(Self::LOOP),
+            prior_loss: checkpoint
+                .and_then(|m| m.get(Self::LOSS))
+                .and_then(|v| v.parse::<f32>().ok())
+                .unwrap_or(f32::NAN),
             started,
             loop_start: std::time::Instant::now(),
         }
@@ -75,12 +81,24 @@ impl RunClock {
         self.loop_start = std::time::Instant::now();
     }
 
-    /// `meta` plus the summed times, for a checkpoint written now.
+    /// The mean training loss of the last steps: `recent` (this run's), else what the
+    /// checkpoint recorded (NaN when neither has any).
+    pub(crate) fn train_loss(&self, recent: &[f32]) -> f32 {
+        if recent.is_empty() {
+            self.prior_loss
+        } else {
+            recent.iter().sum::<f32>() / recent.len() as f32
+        }
+    }
+
+    /// `meta` plus the summed times and the recent training loss, for a checkpoint written now.
     pub(crate) fn stamp(
         &self,
         meta: &std::collections::HashMap<String, String>,
+        recent: &[f32],
     ) -> std::collections::HashMap<String, String> {
         let mut m = meta.clone();
+        m.insert(Self::LOSS.into(), self.train_loss(recent).to_string());
         m.insert(Self::RUN.into(), self.run_seconds().to_string());
         m.insert(Self::LOOP.into(), self.loop_seconds().to_string());
         m

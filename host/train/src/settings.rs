@@ -25,7 +25,7 @@ pub struct NetSettings {
 impl Default for NetSettings {
     fn default() -> Self {
         Self {
-            widths: vec![32, 64, 128],
+            widths: vec![48, 64, 96],
             mid_blocks: 2,
             embed_dim: 64,
             time_embed_dim: 32,
@@ -64,8 +64,8 @@ impl Default for DenoiserSettings {
             diffusion_steps: 256,
             context_dropout: 0.25,
             augment_yaw: true,
-            batch: 256,
-            steps: 20_000,
+            batch: 64,
+            steps: 8_000,
             lr: 1e-3,
             ema_decay: 0.995,
             ema_every: 10,
@@ -96,10 +96,10 @@ pub struct DiscriminatorSettings {
 impl Default for DiscriminatorSettings {
     fn default() -> Self {
         Self {
-            samples: 4096,
+            samples: 1536,
             eval_samples: 512,
             batch: 128,
-            steps: 3000,
+            steps: 1500,
             lr: 1e-3,
             guidance_weight: dips_kernel::diffusion::DEFAULT_GUIDANCE_WEIGHT,
             noise_factor: dips_kernel::diffusion::DEFAULT_NOISE_FACTOR,
