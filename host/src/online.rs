@@ -114,6 +114,9 @@ pub struct OnlineSettings {
     pub sampler: SamplerConfig,
     /// The sequence a fixed-sequence method executes instead of the prior's draw.
     pub sequence: Option<Vec<Mode>>,
+    /// Stop after this many modes (`None`: the task's limit, 7 / 5). The search depth does
+    /// not change.
+    pub max_modes: Option<usize>,
 }
 
 impl Default for OnlineSettings {
@@ -124,6 +127,7 @@ impl Default for OnlineSettings {
             node_budget: 0,
             sampler: SamplerConfig::default(),
             sequence: None,
+            max_modes: None,
         }
     }
 }
@@ -336,7 +340,8 @@ pub fn run_online<H: Hand + ?Sized>(
         queue.len()
     };
     queue.reverse();
-    while executed.len() < limit {
+    let stop = settings.max_modes.map_or(limit, |m| m.min(limit));
+    while executed.len() < stop {
         if method.searches() && (method != Method::DipsNoReplan || plans.is_empty()) {
             let Some(session) = session.as_mut() else {
                 bail!("method `{}` needs the diffusion models", method.name());
@@ -371,7 +376,7 @@ pub fn run_online<H: Hand + ?Sized>(
             queue.clear();
         }
         progress(&format!(
-            "mode {}/{limit}: {}",
+            "mode {}/{stop}: {}",
             executed.len() + 1,
             mode.name()
         ));

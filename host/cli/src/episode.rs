@@ -49,6 +49,9 @@ pub struct EpisodeArgs {
     /// Diffusion sampler of the search and the initialisation: `ddpm` or `ddim:STEPS`.
     #[arg(long, default_value = "ddpm")]
     pub sampler: String,
+    /// Stop after this many modes (default: the task's 7 / 5; the search depth stays).
+    #[arg(long)]
+    pub max_modes: Option<usize>,
     /// Output directory; `result.json` is written there.
     #[arg(long)]
     pub out: PathBuf,
@@ -69,6 +72,9 @@ pub fn run(args: EpisodeArgs) -> anyhow::Result<()> {
         );
     }
     let method = Method::from_name(&args.method)?;
+    if args.max_modes == Some(0) {
+        bail!("--max-modes must be at least 1");
+    }
     if !(args.time_budget_s.is_finite() && args.time_budget_s >= 0.0) {
         bail!("--time-budget-s must be a finite number of seconds ≥ 0");
     }
@@ -98,6 +104,7 @@ pub fn run(args: EpisodeArgs) -> anyhow::Result<()> {
         node_budget: args.node_budget,
         sampler: sampler_config(&args.sampler)?,
         sequence,
+        max_modes: args.max_modes,
     };
     let exec = ExecSettings::for_task(task);
     let mut world = World::new(task);

@@ -94,6 +94,58 @@ fn a_dips_card_episode_plans_before_every_mode_with_the_shipped_models() {
 }
 
 #[test]
+fn a_short_dips_screwdriver_episode_plans_executes_and_replans() {
+    let dir = temp_dir("dips-sd");
+    let out = dips()
+        .args([
+            "episode",
+            "--task",
+            "screwdriver",
+            "--method",
+            "dips",
+            "--seed",
+            "5",
+        ])
+        .args([
+            "--sampler",
+            "ddim:4",
+            "--node-budget",
+            "3",
+            "--max-modes",
+            "2",
+            "--out",
+        ])
+        .arg(&dir)
+        .output()
+        .expect("run dips");
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{err}");
+    let v: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("result.json")).unwrap()).unwrap();
+    let modes = v["modes"].as_array().unwrap();
+    let plans = v["plans"].as_array().unwrap();
+    assert!(!modes.is_empty() && modes.len() <= 2, "{v}");
+    assert_eq!(
+        plans.len(),
+        modes.len(),
+        "one planning call before each mode: {v}"
+    );
+    for (i, p) in plans.iter().enumerate() {
+        assert_eq!(p["modes"][0], modes[i], "plan {i}");
+        // The screwdriver searches the paper's depth 7 from every state; its goal is the
+        // measured yaw − π/3.
+        assert!(p["goal"].as_f64().unwrap() < 0.0);
+    }
+    // Each mode ran 12 CSVTO steps from diffusion samples.
+    assert_eq!(
+        v["csvto_step_s"].as_array().unwrap().len(),
+        12 * modes.len()
+    );
+    assert!(v["final_yaw"].as_f64().unwrap().is_finite());
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
 fn unknown_mode_names_list_the_valid_ones() {
     let out = dips()
         .args(["episode", "--task", "card", "--method", "csvto-sampled"])
