@@ -16,7 +16,7 @@
 use std::time::Instant;
 
 use anyhow::{Context, anyhow, bail};
-use dips_kernel::diffusion::{SampleRequest, SamplerConfig, SamplerScratch, ScratchLayout, sample};
+use dips_kernel::diffusion::SamplerConfig;
 use dips_kernel::engine::DenoiserEngine;
 use dips_kernel::mode::{ModeId, Task};
 use dips_kernel::prior::MarkovPrior;
@@ -31,7 +31,7 @@ use crate::execute::{
 };
 use crate::hand::Hand;
 use crate::kinematics::HandModel;
-use crate::planning::{Models, PaperSession, StdClock};
+use crate::planning::{Models, PaperSession, StdClock, sample_trajectories};
 use crate::problems::contract::{contract_state, from_contract};
 use crate::problems::{AllegroProblem, Mode, ProblemSpec};
 use crate::scenes::SceneKind;
@@ -180,24 +180,8 @@ pub fn diffusion_particles<H: Hand + ?Sized>(
     let context: Vec<f32> = (0..n).flat_map(|_| ctx1.iter().copied()).collect();
     let s0: Vec<f32> = contract_state(&start).iter().map(|&v| v as f32).collect();
     let starts: Vec<f32> = (0..n).flat_map(|_| s0.iter().copied()).collect();
-    let chunk = n.min((engine.max_batch() / 2).max(1));
-    let layout = ScratchLayout::new(dims, chunk);
-    let mut buf = vec![0f32; layout.total()];
-    let mut scratch =
-        SamplerScratch::split(&mut buf, &layout).map_err(|e| anyhow!("sampler scratch: {e}"))?;
-    let mut out = vec![0f32; n * td];
-    sample(
-        engine,
-        sampler,
-        &SampleRequest {
-            context: &context,
-            start_states: Some(&starts),
-        },
-        rng,
-        &mut scratch,
-        &mut out,
-    )
-    .map_err(|e| anyhow!("diffusion initialisation of {}: {e:?}", mode.name()))?;
+    let out = sample_trajectories(engine, sampler, &context, &starts, rng)
+        .with_context(|| format!("diffusion initialisation of {}", mode.name()))?;
     out.chunks_exact(td)
         .map(|t| {
             let rows: Vec<f64> = t.iter().map(|&v| f64::from(v)).collect();

@@ -82,6 +82,48 @@ pub fn default_models_dir(task: Task) -> anyhow::Result<PathBuf> {
     )
 }
 
+/// `given`, or else [`default_models_dir`] of `task`: how every command picks its models.
+pub fn models_dir(given: Option<&Path>, task: Task) -> anyhow::Result<PathBuf> {
+    match given {
+        Some(d) => Ok(d.to_path_buf()),
+        None => default_models_dir(task),
+    }
+}
+
+/// Sample one trajectory per row of `context` (`[n, F]`) with row 0's state inpainted from
+/// `starts` (`[n, state_dim]`, raw), drawing from `rng`; `[n, T, D]` raw rows. The sampler's
+/// chunking (at most 48 trajectories per engine call pair) does not change the bits.
+pub fn sample_trajectories(
+    engine: &mut AnyEngine,
+    config: &dips_kernel::diffusion::SamplerConfig,
+    context: &[f32],
+    starts: &[f32],
+    rng: &mut dips_kernel::rng::KernelRng,
+) -> anyhow::Result<Vec<f32>> {
+    use dips_kernel::diffusion::{SampleRequest, SamplerScratch, ScratchLayout, sample};
+    let dims = DenoiserEngine::dims(engine);
+    let n = context.len() / dims.fingers.max(1);
+    let chunk = 48.min(engine.max_batch() / 2).max(1);
+    let layout = ScratchLayout::new(dims, chunk);
+    let mut buf = vec![0f32; layout.total()];
+    let mut scratch = SamplerScratch::split(&mut buf, &layout)
+        .map_err(|e| anyhow::anyhow!("sampler scratch: {e}"))?;
+    let mut out = vec![0f32; n * dims.floats_per_trajectory()];
+    sample(
+        engine,
+        config,
+        &SampleRequest {
+            context,
+            start_states: Some(starts),
+        },
+        rng,
+        &mut scratch,
+        &mut out,
+    )
+    .map_err(|e| anyhow::anyhow!("sampling failed: {e:?}"))?;
+    Ok(out)
+}
+
 /// A task's denoiser and discriminator, checked against the task's contract, and the prior
 /// fitted with them when the directory has one.
 #[derive(Debug)]

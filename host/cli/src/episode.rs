@@ -8,7 +8,7 @@ use clap::Args;
 
 use dips_host::execute::ExecSettings;
 use dips_host::online::{Method, OnlineSettings, run_online};
-use dips_host::planning::{Models, default_models_dir};
+use dips_host::planning::{Models, models_dir};
 use dips_host::problems::Mode;
 use dips_host::problems::mode::parse_mode;
 use dips_host::scenes::SceneKind;
@@ -91,10 +91,7 @@ pub fn run(args: EpisodeArgs) -> anyhow::Result<()> {
     std::fs::create_dir_all(&args.out)
         .with_context(|| format!("cannot create the output directory {}", args.out.display()))?;
     let models = if method.needs_models() {
-        let dir = match &args.models {
-            Some(d) => d.clone(),
-            None => default_models_dir(task.task())?,
-        };
+        let dir = models_dir(args.models.as_deref(), task.task())?;
         Some(Models::load(args.engine.into(), &dir, task.task())?)
     } else {
         None

@@ -7,9 +7,10 @@ use std::path::{Path, PathBuf};
 use anyhow::{Context, bail};
 use clap::Args;
 use dips_host::atomic_write::write_atomic;
-use dips_host::planning::default_models_dir;
+use dips_host::planning::models_dir;
 use dips_host::quality::{QualityOptions, QualityReport, markdown, measure};
 use dips_host::scenes::SceneKind;
+use dips_train::REPORT_FILE;
 use serde_json::Value;
 
 use crate::model::EngineArg;
@@ -77,14 +78,11 @@ fn read_json(path: &Path) -> anyhow::Result<Value> {
 /// Run `dips model quality`.
 pub fn run_quality(args: QualityArgs) -> anyhow::Result<()> {
     let scene = scene(&args.task)?;
-    let dir = match args.models {
-        Some(d) => d,
-        None => default_models_dir(scene.task())?,
-    };
+    let dir = models_dir(args.models.as_deref(), scene.task())?;
     if args.trajectories == 0 {
         bail!("--trajectories must be at least 1");
     }
-    let report_path = dir.join(dips_train_report_file());
+    let report_path = dir.join(REPORT_FILE);
     let report = read_json(&report_path)?;
     let seeds: Vec<u64> = report["held_out_seeds"]
         .as_array()
@@ -107,22 +105,17 @@ pub fn run_quality(args: QualityArgs) -> anyhow::Result<()> {
     Ok(())
 }
 
-fn dips_train_report_file() -> &'static str {
-    "train_report.json"
-}
-
 /// Run `dips model card`.
 pub fn run_card(args: CardArgs) -> anyhow::Result<()> {
     let scene = scene(&args.task)?;
-    let dir = match args.models {
-        Some(d) => d,
-        None => default_models_dir(scene.task())?,
-    };
-    let report = read_json(&dir.join(dips_train_report_file()))?;
+    let dir = models_dir(args.models.as_deref(), scene.task())?;
+    let report = read_json(&dir.join(REPORT_FILE))?;
     let quality: QualityReport = {
         let p = dir.join(QUALITY_FILE);
         let v = read_json(&p)?;
-        quality_from_json(&v).with_context(|| format!("{} is not a quality report", p.display()))?
+        // Written by this binary: the JSON fields are the report's.
+        serde_json::from_value(v)
+            .with_context(|| format!("{} is not a quality report", p.display()))?
     };
     let card = card_text(scene, &dir, &report, &quality, args.command.as_deref())?;
     let path = dir.join(CARD_FILE);
@@ -130,11 +123,6 @@ pub fn run_card(args: CardArgs) -> anyhow::Result<()> {
         .with_context(|| format!("cannot write {}", path.display()))?;
     println!("{}", path.display());
     Ok(())
-}
-
-fn quality_from_json(v: &Value) -> anyhow::Result<QualityReport> {
-    // The report is written by this binary; re-render its Markdown from the JSON fields.
-    serde_json::from_value(v.clone()).context("unexpected fields")
 }
 
 fn card_text(

@@ -20,7 +20,7 @@ use dips_kernel::session::PlanSpec;
 use dips_onnx::EngineKind;
 use serde_json::json;
 
-use dips_host::planning::{Models, PaperSession, StdClock, default_models_dir};
+use dips_host::planning::{Models, PaperSession, StdClock, models_dir};
 use dips_host::problems::contract::contract_state;
 use dips_host::scenes::SceneKind;
 use dips_host::world::World;
@@ -148,10 +148,7 @@ pub fn run(args: PlanArgs) -> anyhow::Result<()> {
         PlanEngine::Kernel => EngineKind::Kernel,
         PlanEngine::Tract => EngineKind::Tract,
     };
-    let dir = match &args.models {
-        Some(d) => d.clone(),
-        None => default_models_dir(task)?,
-    };
+    let dir = models_dir(args.models.as_deref(), task)?;
     let models = Models::load(kind, &dir, task)?;
     let prior_source = match models.prior {
         Some(prior) => {

@@ -11,16 +11,16 @@ pub mod coherence;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
-use anyhow::{Context, bail};
+use anyhow::bail;
 use dips_dataset::{Dataset, DemoRecord};
-use dips_kernel::diffusion::{SampleRequest, SamplerConfig, SamplerScratch, ScratchLayout, sample};
+use dips_kernel::diffusion::SamplerConfig;
 use dips_kernel::engine::DenoiserEngine;
 use dips_kernel::mode::Task;
 use dips_kernel::rng::KernelRng;
-use dips_onnx::{AnyEngine, EngineKind, Expectation, Role};
+use dips_onnx::{AnyEngine, EngineKind};
 use serde::Serialize;
 
-use crate::planning::model_file;
+use crate::planning::{Models, sample_trajectories};
 use crate::scenes::SceneKind;
 use crate::world::World;
 pub use coherence::{Coherence, Dist, world_state};
@@ -159,15 +159,28 @@ fn inference_times(
         v.sort_by(f64::total_cmp);
         v[v.len() / 2]
     };
-    for kind in [EngineKind::Kernel, EngineKind::Tract] {
-        let name = format!("{kind:?}").to_lowercase();
-        let file = models_dir.join(model_file(Role::Denoiser));
-        let mut e = AnyEngine::load(kind, &file, &Expectation::new(Role::Denoiser, task.name()))?;
-        let mut eps = vec![0f32; batch * td];
-        let mut times = Vec::new();
+    // The median wall time of `calls` calls after one warm-up call.
+    let time = |call: &mut dyn FnMut() -> anyhow::Result<()>| -> anyhow::Result<f64> {
+        let mut times = Vec::with_capacity(calls);
         for c in 0..=calls {
             let t0 = Instant::now();
-            e.predict_eps(
+            call()?;
+            if c > 0 {
+                times.push(t0.elapsed().as_secs_f64() * 1e3);
+            }
+        }
+        Ok(median(times))
+    };
+    for kind in [EngineKind::Kernel, EngineKind::Tract] {
+        let engine = format!("{kind:?}").to_lowercase();
+        let Models {
+            denoiser: mut den,
+            discriminator: mut disc,
+            ..
+        } = Models::load(kind, models_dir, task)?;
+        let mut eps = vec![0f32; batch * td];
+        let den_ms = time(&mut || {
+            den.predict_eps(
                 batch,
                 &x[..batch * td],
                 &t[..batch],
@@ -175,41 +188,22 @@ fn inference_times(
                 &mask[..batch],
                 &mut eps,
             )
-            .map_err(|err| anyhow::anyhow!("denoiser: {err:?}"))?;
-            if c > 0 {
-                times.push(t0.elapsed().as_secs_f64() * 1e3);
-            }
-        }
-        out.push(InferenceTime {
-            role: "denoiser".into(),
-            engine: name.clone(),
-            batch,
-            median_ms: median(times),
-            calls,
-        });
-        let file = models_dir.join(model_file(Role::Discriminator));
-        let mut e = AnyEngine::load(
-            kind,
-            &file,
-            &Expectation::new(Role::Discriminator, task.name()),
-        )?;
+            .map_err(|err| anyhow::anyhow!("denoiser: {err:?}"))
+        })?;
         let mut p = vec![0f32; batch];
-        let mut times = Vec::new();
-        for c in 0..=calls {
-            let t0 = Instant::now();
-            e.p_real(batch, &x[..batch * td], &ctx[..batch * f], &mut p)
-                .map_err(|err| anyhow::anyhow!("discriminator: {err:?}"))?;
-            if c > 0 {
-                times.push(t0.elapsed().as_secs_f64() * 1e3);
-            }
+        let disc_ms = time(&mut || {
+            disc.p_real(batch, &x[..batch * td], &ctx[..batch * f], &mut p)
+                .map_err(|err| anyhow::anyhow!("discriminator: {err:?}"))
+        })?;
+        for (role, median_ms) in [("denoiser", den_ms), ("discriminator", disc_ms)] {
+            out.push(InferenceTime {
+                role: role.into(),
+                engine: engine.clone(),
+                batch,
+                median_ms,
+                calls,
+            });
         }
-        out.push(InferenceTime {
-            role: "discriminator".into(),
-            engine: name,
-            batch,
-            median_ms: median(times),
-            calls,
-        });
     }
     Ok(out)
 }
@@ -319,7 +313,7 @@ fn score(disc: &mut AnyEngine, x: &[f32], context: &[f32]) -> anyhow::Result<Sco
     })
 }
 
-/// Sample one trajectory per (context, start row) with `config`.
+/// Sample one trajectory per (context, start row of `x`) with `config` and a fresh `seed`.
 fn sample_like(
     engine: &mut AnyEngine,
     config: &SamplerConfig,
@@ -330,30 +324,17 @@ fn sample_like(
 ) -> anyhow::Result<Vec<f32>> {
     let dims = task.dims();
     let (td, sd) = (dims.floats(), dims.state_dim);
-    let n = x.len() / td;
-    let starts: Vec<f32> = (0..n)
-        .flat_map(|i| x[i * td..i * td + sd].iter().copied())
+    let starts: Vec<f32> = x
+        .chunks_exact(td)
+        .flat_map(|t| t[..sd].iter().copied())
         .collect();
-    let chunk = 48.min(engine.max_batch() / 2).max(1);
-    let layout = ScratchLayout::new(DenoiserEngine::dims(engine), chunk);
-    let mut buf = vec![0f32; layout.total()];
-    let mut scratch = SamplerScratch::split(&mut buf, &layout)
-        .map_err(|e| anyhow::anyhow!("sampler scratch: {e}"))?;
-    let mut out = vec![0f32; n * td];
-    let mut rng = KernelRng::seed_from_u64(seed);
-    sample(
+    sample_trajectories(
         engine,
         config,
-        &SampleRequest {
-            context,
-            start_states: Some(&starts),
-        },
-        &mut rng,
-        &mut scratch,
-        &mut out,
+        context,
+        &starts,
+        &mut KernelRng::seed_from_u64(seed),
     )
-    .map_err(|e| anyhow::anyhow!("sampling failed: {e:?}"))?;
-    Ok(out)
 }
 
 /// The first plan of every held-out execution of an object-moving mode: `(demo seed, mode
@@ -449,20 +430,11 @@ pub fn measure(
             data_dir.display()
         );
     }
-    let file = models_dir.join(model_file(Role::Denoiser));
-    let mut engine = AnyEngine::load(
-        opts.engine,
-        &file,
-        &Expectation::new(Role::Denoiser, task.name()),
-    )
-    .with_context(|| format!("loading {}", file.display()))?;
-    let dfile = models_dir.join(model_file(Role::Discriminator));
-    let mut disc = AnyEngine::load(
-        opts.engine,
-        &dfile,
-        &Expectation::new(Role::Discriminator, task.name()),
-    )
-    .with_context(|| format!("loading {}", dfile.display()))?;
+    let Models {
+        denoiser: mut engine,
+        discriminator: mut disc,
+        ..
+    } = Models::load(opts.engine, models_dir, task)?;
     let world = World::new(scene);
     let hand = world.hand_model().clone();
     let held = held_out(&ds, held_out_seeds, opts.trajectories);
