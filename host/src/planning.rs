@@ -12,6 +12,7 @@ use std::time::Instant;
 
 use anyhow::{Context, bail};
 use dips_kernel::budget::Clock;
+use dips_kernel::diffusion::SamplerConfig;
 use dips_kernel::engine::DenoiserEngine;
 use dips_kernel::mode::Task;
 use dips_kernel::prior::MarkovPrior;
@@ -34,6 +35,24 @@ impl Clock for StdClock {
     fn now_us(&mut self) -> u64 {
         u64::try_from(self.0.elapsed().as_micros()).unwrap_or(u64::MAX)
     }
+}
+
+/// Parse a sampler name: `ddpm` (the paper's ancestral DDPM over every training step) or
+/// `ddim:STEPS` (deterministic DDIM, STEPS ≥ 1).
+pub fn parse_sampler(spec: &str) -> anyhow::Result<SamplerConfig> {
+    if spec == "ddpm" {
+        return Ok(SamplerConfig::default());
+    }
+    let steps = spec
+        .strip_prefix("ddim:")
+        .and_then(|n| n.parse::<u16>().ok())
+        .filter(|&n| n > 0)
+        .ok_or_else(|| {
+            anyhow::anyhow!(
+                "--sampler {spec:?}: expected `ddpm` or `ddim:STEPS` (1 ≤ STEPS ≤ 65535)"
+            )
+        })?;
+    Ok(SamplerConfig::ddim(steps))
 }
 
 /// The file name of a model role in a models directory.

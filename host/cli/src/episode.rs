@@ -15,7 +15,9 @@ use dips_host::scenes::SceneKind;
 use dips_host::world::World;
 
 use crate::model::EngineArg;
-use crate::plan::sampler_config;
+
+/// The sampler of `dips episode`, `dips eval` and `dips plan` when none is given.
+pub const DEFAULT_SAMPLER: &str = "ddpm";
 
 /// Arguments of `dips episode`.
 #[derive(Debug, Args)]
@@ -47,7 +49,7 @@ pub struct EpisodeArgs {
     #[arg(long, default_value_t = 0)]
     pub node_budget: u32,
     /// Diffusion sampler of the search and the initialisation: `ddpm` or `ddim:STEPS`.
-    #[arg(long, default_value = "ddpm")]
+    #[arg(long, default_value = DEFAULT_SAMPLER)]
     pub sampler: String,
     /// Stop after this many modes (default: the task's 7 / 5; the search depth stays).
     #[arg(long)]
@@ -99,7 +101,7 @@ pub fn run(args: EpisodeArgs) -> anyhow::Result<()> {
     let settings = OnlineSettings {
         time_budget_s: args.time_budget_s,
         node_budget: args.node_budget,
-        sampler: sampler_config(&args.sampler)?,
+        sampler: dips_host::planning::parse_sampler(&args.sampler)?,
         sequence,
         max_modes: args.max_modes,
     };

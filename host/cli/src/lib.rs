@@ -8,6 +8,7 @@ pub mod bench_inference;
 pub mod bench_sim;
 pub mod datagen;
 pub mod episode;
+pub mod eval;
 pub mod model;
 pub mod model_quality;
 pub mod plan;
@@ -34,6 +35,9 @@ pub enum Command {
     Sim(sim::SimArgs),
     /// One closed-loop episode in the quasi-static world; writes DIR/result.json.
     Episode(episode::EpisodeArgs),
+    /// The paper's experiments: many episodes per method (resumable, sharded), then
+    /// results.json, results.md and box plots.
+    Eval(eval::EvalArgs),
     /// One A* planning call from the task's start state with the diffusion models.
     Plan(plan::PlanArgs),
     /// Generate a dataset: CSVTO demos driven by the task's prior (resumable, sharded).
@@ -50,6 +54,7 @@ pub fn main() -> anyhow::Result<()> {
         Command::Bench(args) => bench::run(args),
         Command::Sim(args) => sim::main(args),
         Command::Episode(args) => episode::run(args),
+        Command::Eval(args) => eval::run(args),
         Command::Plan(args) => plan::run(args),
         Command::Datagen(args) => datagen::run(args),
         Command::Train(args) => train::run(args),

@@ -13,7 +13,6 @@ use std::time::Instant;
 
 use anyhow::{Context, anyhow, bail};
 use clap::{Args, ValueEnum};
-use dips_kernel::diffusion::SamplerConfig;
 use dips_kernel::mode::Task;
 use dips_kernel::search::SearchConfig;
 use dips_kernel::session::PlanSpec;
@@ -67,24 +66,11 @@ pub struct PlanArgs {
     #[arg(long, default_value_t = 300.0)]
     pub time_budget_s: f64,
     /// Diffusion sampler: `ddpm` (the paper's) or `ddim:STEPS`.
-    #[arg(long, default_value = "ddpm")]
+    #[arg(long, default_value = crate::episode::DEFAULT_SAMPLER)]
     pub sampler: String,
     /// Print JSON (the only output format).
     #[arg(long)]
     pub json: bool,
-}
-
-/// Parse `--sampler`: `ddpm` (the paper's) or `ddim:STEPS`.
-pub fn sampler_config(spec: &str) -> anyhow::Result<SamplerConfig> {
-    if spec == "ddpm" {
-        return Ok(SamplerConfig::default());
-    }
-    let steps = spec
-        .strip_prefix("ddim:")
-        .and_then(|n| n.parse::<u16>().ok())
-        .filter(|&n| n > 0)
-        .ok_or_else(|| anyhow!("--sampler {spec:?}: expected `ddpm` or `ddim:STEPS`"))?;
-    Ok(SamplerConfig::ddim(steps))
 }
 
 /// The search settings of `dips plan`: the task's own ([`SearchConfig::for_task`]: the
@@ -124,7 +110,7 @@ pub fn run(args: PlanArgs) -> anyhow::Result<()> {
         )
     })?;
     let task = scene.task();
-    let sampler = sampler_config(&args.sampler)?;
+    let sampler = dips_host::planning::parse_sampler(&args.sampler)?;
     let config = search_config(task, &args)?;
 
     let start: Vec<f32> = contract_state(&World::new(scene).state())

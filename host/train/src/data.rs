@@ -160,6 +160,8 @@ pub mod purpose {
     pub const SAMPLER: u64 = 6;
     /// Discriminator data order.
     pub const DISC_ORDER: u64 = 7;
+    /// Discriminator input noise (diffusion step and noise per trajectory).
+    pub const DISC_NOISE: u64 = 8;
 }
 
 /// The permutation of `n` items for `epoch` (Fisher–Yates on its own stream).

@@ -262,9 +262,8 @@ pub fn train_denoiser(
     };
 
     let ck_path = checkpoint_dir(out_dir)?.join("denoiser.safetensors");
-    let settings_json = serde_json::to_string(settings).unwrap_or_default();
     let meta = HashMap::from([
-        ("settings".to_string(), settings_json),
+        ("settings".to_string(), settings.denoiser_key()),
         ("task".to_string(), task.name().to_string()),
         ("data".to_string(), fingerprint(&[&train.x, &train.context])),
     ]);
@@ -285,6 +284,7 @@ pub fn train_denoiser(
     let dev = Device::flex().autodiff();
     let (td, f, d) = (dims.floats(), dims.fingers, dims.dim());
     let warmup = settings.ema_warmup();
+    let object_cols = task.layout().object()..task.layout().state_dim();
     let pb = bar(opts, s.steps as u64, "denoiser");
     pb.set_position(optim.step as u64);
     let mut order_cache = None;
@@ -314,7 +314,14 @@ pub fn train_denoiser(
             }
         }
         norm.normalize(&mut x0);
-        let nb = noise_batch(&x0, ctx, dims, &alpha_bar, s.context_dropout, &mut rng);
+        let mut nb = noise_batch(&x0, ctx, dims, &alpha_bar, s.context_dropout, &mut rng);
+        if s.object_loss_weight != 1.0 {
+            for row in nb.weight.chunks_exact_mut(d) {
+                for w in &mut row[object_cols.clone()] {
+                    *w *= s.object_loss_weight;
+                }
+            }
+        }
         let wsum: f32 = nb.weight.iter().sum();
 
         let p = params.tensors(&dev, true);

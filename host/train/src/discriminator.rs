@@ -1,11 +1,18 @@
 //! Training the discriminator Ψ (spec §4.5) on real (label 1) versus diffused (label 0)
-//! trajectories, clean inputs (t = 0), BCE on the logit.
+//! trajectories, BCE on the logit.
 //!
 //! The diffused trajectories come from the planner's own sampler: the trained denoiser is
 //! exported to ONNX, loaded by tract (`dips_onnx::TractEngine`) and sampled with
-//! `dips_kernel::diffusion::sample` (ancestral DDPM, noise factor and guidance weight from
-//! the settings), row 0's state inpainted with the real start state and conditioned on the
-//! real context. They are cached in `checkpoints/disc_fakes.safetensors`.
+//! `dips_kernel::diffusion::sample` (ancestral DDPM with the settings' noise factor and
+//! guidance weight, then DDIM at each of `ddim_fakes` step counts), row 0's state inpainted
+//! with the real start state and conditioned on the real context. They are cached in
+//! `checkpoints/disc_fakes_*.safetensors`.
+//!
+//! With `noised_inputs` (the default, as in the authors' code) every training input is
+//! forward-noised to a random diffusion step and its BCE weighted by `√β_t`: trained on clean
+//! inputs only, Ψ learned to detect the DDPM sampler's fine texture (AUC 1.0) and scored DDIM
+//! samples as real, which collapsed the particle weights (`docs/training.md`). Ψ is used, and
+//! evaluated here, on clean inputs.
 
 use std::collections::HashMap;
 use std::path::Path;
@@ -14,6 +21,7 @@ use std::time::Instant;
 use burn::tensor::Device;
 use burn::tensor::activation::{sigmoid, softplus};
 use dips_dataset::Dataset;
+use dips_kernel::diffusion::schedule::fill_alpha_bar;
 use dips_kernel::diffusion::{
     SampleRequest, SamplerConfig, SamplerScratch, SamplingMethod, ScratchLayout, sample,
 };
@@ -226,12 +234,46 @@ fn write_cache(path: &Path, key: &str, v: &[f32], seconds: f64) -> Result<()> {
     dips_dataset::write_atomic(path, &buf).map_err(io_err(path))
 }
 
-/// Real and diffused trajectories, normalised.
+/// Real and diffused trajectories, normalised: `fake` holds one set of `n` per sampler,
+/// set `j`'s trajectory `i` made from real trajectory `i`.
 struct Pairs {
     real: Vec<f32>,
     fake: Vec<f32>,
     context: Vec<f32>,
     n: usize,
+    sets: usize,
+}
+
+/// The samplers whose trajectories are Ψ's negatives: the paper's DDPM, then each DDIM count,
+/// with the cache-key tag of each.
+fn fake_samplers(settings: &TrainSettings) -> Vec<(String, SamplerConfig)> {
+    let s = &settings.discriminator;
+    let base = SamplerConfig {
+        guidance_weight: s.guidance_weight,
+        ..SamplerConfig::default()
+    };
+    let mut v = vec![(
+        String::new(),
+        SamplerConfig {
+            method: SamplingMethod::Ddpm {
+                noise_factor: s.noise_factor,
+            },
+            ..base
+        },
+    )];
+    for &steps in &s.ddim_fakes {
+        v.push((
+            format!("ddim{steps}"),
+            SamplerConfig {
+                method: SamplingMethod::Ddim {
+                    steps: u16::try_from(steps).unwrap_or(u16::MAX),
+                    eta: 0.0,
+                },
+                ..base
+            },
+        ));
+    }
+    v
 }
 
 fn pairs(
@@ -244,40 +286,49 @@ fn pairs(
     what: &str,
 ) -> Result<(Pairs, f64)> {
     let s = &settings.discriminator;
-    let config = SamplerConfig {
-        method: SamplingMethod::Ddpm {
-            noise_factor: s.noise_factor,
-        },
-        guidance_weight: s.guidance_weight,
-        ..SamplerConfig::default()
-    };
-    // `v2`: the sampler zeroes the last row's action (older caches are stale).
-    let key = format!(
-        "v2-{:?}-{}-{}-{}-{}-{seed}",
-        config.clip_denoised,
-        fingerprint(
-            &denoiser
-                .params
-                .data
-                .iter()
-                .map(Vec::as_slice)
-                .collect::<Vec<_>>()
-        ),
-        fingerprint(&[&real.x, &real.context]),
-        s.noise_factor,
-        s.guidance_weight
+    let samplers = fake_samplers(settings);
+    let den_fp = fingerprint(
+        &denoiser
+            .params
+            .data
+            .iter()
+            .map(Vec::as_slice)
+            .collect::<Vec<_>>(),
     );
-    // The seconds are the sampling's, also when the trajectories come from the cache.
-    let (mut fake, secs) = match read_cache(cache, &key, real.x.len()) {
-        Some(cached) => cached,
-        None => {
-            let t0 = Instant::now();
-            let v = diffuse_like(denoiser, &real, &config, seed, opts, what)?;
-            let secs = t0.elapsed().as_secs_f64();
-            write_cache(cache, &key, &v, secs)?;
-            (v, secs)
-        }
-    };
+    let real_fp = fingerprint(&[&real.x, &real.context]);
+    let mut fake = Vec::with_capacity(real.x.len() * samplers.len());
+    let mut seconds = 0.0;
+    for (tag, config) in &samplers {
+        // `v2`: the sampler zeroes the last row's action (older caches are stale). DDPM's key
+        // and file keep their first form.
+        let key = format!(
+            "v2{tag}-{:?}-{den_fp}-{real_fp}-{}-{}-{seed}",
+            config.clip_denoised, s.noise_factor, s.guidance_weight
+        );
+        let path = if tag.is_empty() {
+            cache.to_path_buf()
+        } else {
+            cache.with_extension(format!("{tag}.safetensors"))
+        };
+        // The seconds are the sampling's, also when the trajectories come from the cache.
+        let (v, secs) = match read_cache(&path, &key, real.x.len()) {
+            Some(cached) => cached,
+            None => {
+                let t0 = Instant::now();
+                let label = if tag.is_empty() {
+                    what.to_string()
+                } else {
+                    format!("{what} ({tag})")
+                };
+                let v = diffuse_like(denoiser, &real, config, seed, opts, &label)?;
+                let secs = t0.elapsed().as_secs_f64();
+                write_cache(&path, &key, &v, secs)?;
+                (v, secs)
+            }
+        };
+        fake.extend(v);
+        seconds += secs;
+    }
     let mut r = real.x;
     denoiser.norm.normalize(&mut r);
     denoiser.norm.normalize(&mut fake);
@@ -287,9 +338,32 @@ fn pairs(
             fake,
             context: real.context,
             n: real.n,
+            sets: samplers.len(),
         },
-        secs,
+        seconds,
     ))
+}
+
+/// Forward-noise `x` (normalised, `b` trajectories) in place to one random diffusion step per
+/// trajectory, row 0's state kept clean as the sampler keeps it; returns `√β_t` per trajectory.
+fn forward_noise(
+    x: &mut [f32],
+    dims: SegmentDims,
+    alpha_bar: &[f32],
+    rng: &mut dips_kernel::rng::KernelRng,
+) -> Vec<f32> {
+    let (td, sd) = (dims.floats(), dims.state_dim);
+    x.chunks_exact_mut(td)
+        .map(|traj| {
+            let t = rng.below(alpha_bar.len() as u32) as usize;
+            let (sa, sb) = (alpha_bar[t].sqrt(), (1.0 - alpha_bar[t]).sqrt());
+            for v in &mut traj[sd..] {
+                *v = sa * *v + sb * rng.normal_f32();
+            }
+            let prev = if t == 0 { 1.0 } else { alpha_bar[t - 1] };
+            (1.0 - alpha_bar[t] / prev).clamp(0.0, 1.0).sqrt()
+        })
+        .collect()
 }
 
 /// Scores of real and diffused trajectories, and the mean BCE.
@@ -303,21 +377,25 @@ fn evaluate(
     let pt = params.tensors(&dev, false);
     let (td, f) = (dims.floats(), dims.fingers);
     let mut scores = [Vec::new(), Vec::new()];
-    for (k, x) in [&p.real, &p.fake].into_iter().enumerate() {
-        let mut i = 0;
-        while i < p.n {
-            let b = (p.n - i).min(256);
-            let z = net.logit(
-                &pt,
-                tensor(
-                    x[i * td..(i + b) * td].to_vec(),
-                    [b, dims.horizon, dims.dim()],
-                    &dev,
-                ),
-                tensor(p.context[i * f..(i + b) * f].to_vec(), [b, f], &dev),
-            );
-            scores[k].extend(to_vec(z)?);
-            i += b;
+    let sets = [(0, &p.real, 1), (1, &p.fake, p.sets)];
+    for (k, x, count) in sets {
+        for j in 0..count {
+            let x = &x[j * p.n * td..(j + 1) * p.n * td];
+            let mut i = 0;
+            while i < p.n {
+                let b = (p.n - i).min(256);
+                let z = net.logit(
+                    &pt,
+                    tensor(
+                        x[i * td..(i + b) * td].to_vec(),
+                        [b, dims.horizon, dims.dim()],
+                        &dev,
+                    ),
+                    tensor(p.context[i * f..(i + b) * f].to_vec(), [b, f], &dev),
+                );
+                scores[k].extend(to_vec(z)?);
+                i += b;
+            }
         }
     }
     // BCE from logits: softplus(z) − y·z.
@@ -407,6 +485,8 @@ pub fn train_discriminator(
 
     let dev = Device::flex().autodiff();
     let (td, f) = (dims.floats(), dims.fingers);
+    let mut alpha_bar = vec![0f32; denoiser.diffusion_steps];
+    fill_alpha_bar(denoiser.diffusion_steps, &mut alpha_bar);
     let half = s.batch / 2;
     let b = 2 * half;
     let mut labels = vec![1.0f32; half];
@@ -428,12 +508,27 @@ pub fn train_discriminator(
         );
         let mut x = Vec::with_capacity(b * td);
         let mut c = Vec::with_capacity(b * f);
-        for src in [&tp.real, &tp.fake] {
+        for &i in &idx {
+            x.extend_from_slice(&tp.real[i * td..(i + 1) * td]);
+        }
+        // The negatives cycle through the samplers' sets.
+        for (k, &i) in idx.iter().enumerate() {
+            let j = (step * half + k) % tp.sets * tp.n + i;
+            x.extend_from_slice(&tp.fake[j * td..(j + 1) * td]);
+        }
+        for _ in 0..2 {
             for &i in &idx {
-                x.extend_from_slice(&src[i * td..(i + 1) * td]);
                 c.extend_from_slice(&tp.context[i * f..(i + 1) * f]);
             }
         }
+        let w = if s.noised_inputs {
+            let mut rng = stream(settings.seed, purpose::DISC_NOISE, step as u64);
+            let w = forward_noise(&mut x, dims, &alpha_bar, &mut rng);
+            let mean = w.iter().sum::<f32>() / w.len() as f32;
+            w.into_iter().map(|v| v / mean.max(1e-12)).collect()
+        } else {
+            vec![1.0; b]
+        };
         let p = params.tensors(&dev, true);
         let z = net.logit(
             &p,
@@ -441,7 +536,8 @@ pub fn train_discriminator(
             tensor(c, [b, f], &dev),
         );
         let y = tensor(labels.clone(), [b, 1], &dev);
-        let loss = (softplus(z.clone(), 1.0) - z * y).mean();
+        let w = tensor(w, [b, 1], &dev);
+        let loss = ((softplus(z.clone(), 1.0) - z * y) * w).mean();
         let grads = loss.backward();
         let lv = to_vec(loss.detach())?.first().copied().unwrap_or(f32::NAN);
         if !lv.is_finite() {

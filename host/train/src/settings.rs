@@ -56,6 +56,16 @@ pub struct DenoiserSettings {
     pub ema_every: usize,
     /// Steps during which the EMA is a plain copy; `None`: `min(1000, steps / 5)`.
     pub ema_warmup: Option<usize>,
+    /// Weight of the object's state columns (pose: screwdriver roll, pitch, cos/sin yaw;
+    /// card x, y, θ) in the ε loss, relative to 1 for every other column. The search reads
+    /// its progress and costs from these few columns; with 1 the models predicted the object's
+    /// motion poorly (`docs/training.md`).
+    #[serde(default = "default_object_loss_weight")]
+    pub object_loss_weight: f32,
+}
+
+fn default_object_loss_weight() -> f32 {
+    1.0
 }
 
 impl Default for DenoiserSettings {
@@ -70,6 +80,7 @@ impl Default for DenoiserSettings {
             ema_decay: 0.995,
             ema_every: 10,
             ema_warmup: None,
+            object_loss_weight: 10.0,
         }
     }
 }
@@ -91,6 +102,22 @@ pub struct DiscriminatorSettings {
     pub guidance_weight: f32,
     /// Noise factor of the ancestral DDPM sampler (0.5 in the DIPS code).
     pub noise_factor: f32,
+    /// DDIM step counts whose samples join the DDPM ones as diffused trajectories, so that
+    /// Ψ has seen the planner's fast samplers too (empty: DDPM only).
+    #[serde(default = "default_ddim_fakes")]
+    pub ddim_fakes: Vec<usize>,
+    /// Train on inputs forward-noised to a random diffusion step with the BCE weighted by
+    /// `√β_t` (the authors' code); `false`: clean inputs only. Row 0's state stays clean.
+    #[serde(default = "default_true")]
+    pub noised_inputs: bool,
+}
+
+fn default_ddim_fakes() -> Vec<usize> {
+    vec![8]
+}
+
+fn default_true() -> bool {
+    true
 }
 
 impl Default for DiscriminatorSettings {
@@ -103,6 +130,8 @@ impl Default for DiscriminatorSettings {
             lr: 1e-3,
             guidance_weight: dips_kernel::diffusion::DEFAULT_GUIDANCE_WEIGHT,
             noise_factor: dips_kernel::diffusion::DEFAULT_NOISE_FACTOR,
+            ddim_fakes: default_ddim_fakes(),
+            noised_inputs: true,
         }
     }
 }
@@ -212,6 +241,12 @@ impl TrainSettings {
         if !(0.0..1.0).contains(&d.ema_decay) {
             return Err(bad("denoiser.ema_decay", "must be in [0, 1)"));
         }
+        if !(d.object_loss_weight.is_finite() && d.object_loss_weight > 0.0) {
+            return Err(bad(
+                "denoiser.object_loss_weight",
+                "must be positive and finite",
+            ));
+        }
         if d.ema_every == 0 {
             return Err(bad("denoiser.ema_every", "must be positive"));
         }
@@ -231,6 +266,19 @@ impl TrainSettings {
                 "guidance weight and noise factor must be finite, noise factor ≥ 0",
             ));
         }
+        if let Some(&k) = s
+            .ddim_fakes
+            .iter()
+            .find(|&&k| k == 0 || k > d.diffusion_steps.min(usize::from(u16::MAX)))
+        {
+            return Err(bad(
+                "discriminator.ddim_fakes",
+                format!(
+                    "{k} DDIM steps: each entry must be in 1..={}",
+                    d.diffusion_steps
+                ),
+            ));
+        }
         if !(0.0..1.0).contains(&self.held_out_fraction) {
             return Err(bad("held_out_fraction", "must be in [0, 1)"));
         }
@@ -241,6 +289,31 @@ impl TrainSettings {
             return Err(bad("std_floor", "must be positive and finite"));
         }
         Ok(())
+    }
+
+    /// What the denoiser's checkpoint must agree on to be resumed: every setting but the
+    /// discriminator's (retraining Ψ alone keeps the denoiser).
+    pub fn denoiser_key(&self) -> String {
+        #[derive(Serialize)]
+        struct Key<'a> {
+            seed: u64,
+            held_out_fraction: f64,
+            eval_samples: usize,
+            std_floor: f32,
+            checkpoint_every: usize,
+            net: &'a NetSettings,
+            denoiser: &'a DenoiserSettings,
+        }
+        serde_json::to_string(&Key {
+            seed: self.seed,
+            held_out_fraction: self.held_out_fraction,
+            eval_samples: self.eval_samples,
+            std_floor: self.std_floor,
+            checkpoint_every: self.checkpoint_every,
+            net: &self.net,
+            denoiser: &self.denoiser,
+        })
+        .unwrap_or_default()
     }
 
     /// The EMA warm-up in steps.

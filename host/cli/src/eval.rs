@@ -1,0 +1,123 @@
+//! `dips eval`: the paper's experiments (`dips_eval`): many episodes per method on all cores,
+//! resumable and sharded, then `results.json`, `results.md` and the box plots.
+
+use std::path::PathBuf;
+
+use anyhow::Context;
+use clap::Args;
+
+use dips_datagen::Shard;
+use dips_eval::{EvalSettings, run_eval, summarize};
+use dips_host::online::{Method, OnlineSettings};
+use dips_host::planning::{models_dir, parse_sampler};
+use dips_host::scenes::SceneKind;
+
+use crate::model::EngineArg;
+
+/// Arguments of `dips eval`.
+#[derive(Debug, Args)]
+pub struct EvalArgs {
+    /// Task: `screwdriver` or `card`.
+    #[arg(long)]
+    pub task: String,
+    /// Comma-separated methods (default: every method, in the paper's order).
+    #[arg(long, value_delimiter = ',')]
+    pub methods: Option<Vec<String>>,
+    /// Trials per method; trial `i` has seed `--first-seed + i` for every method.
+    #[arg(long, default_value_t = 10)]
+    pub trials: usize,
+    /// Seed of trial 0. The default, 1000, is above every seed the shipped models were trained
+    /// or tuned on (demos 0–47, smoke episodes at 100).
+    #[arg(long, default_value_t = 1000)]
+    pub first_seed: u64,
+    /// Output directory (resumed when it holds an evaluation of the same settings).
+    #[arg(long)]
+    pub out: PathBuf,
+    /// Episodes run at once (default: the number of cores).
+    #[arg(long)]
+    pub jobs: Option<usize>,
+    /// Run only shard I of N (method × trial, in order), e.g. `--shard 0/4`.
+    #[arg(long, default_value = "0/1")]
+    pub shard: Shard,
+    /// Models directory (default: the shipped models, `onnx/models/<task>`).
+    #[arg(long)]
+    pub models: Option<PathBuf>,
+    /// Engine that runs the models.
+    #[arg(long, value_enum, default_value_t = EngineArg::Kernel)]
+    pub engine: EngineArg,
+    /// Diffusion sampler of the search and the initialisation: `ddpm` or `ddim:STEPS`.
+    #[arg(long, default_value = crate::episode::DEFAULT_SAMPLER)]
+    pub sampler: String,
+    /// Wall-clock budget of each planning call in seconds (the paper's: 300).
+    #[arg(long, default_value_t = 300.0)]
+    pub time_budget_s: f64,
+    /// Most node expansions per planning call (0: the planner's capacity).
+    #[arg(long, default_value_t = 0)]
+    pub node_budget: u32,
+    /// Stop each episode after this many modes (default: the task's 7 / 5).
+    #[arg(long)]
+    pub max_modes: Option<usize>,
+    /// Only write the summary of the episodes already in `--out`.
+    #[arg(long)]
+    pub summarize_only: bool,
+    /// No progress bar.
+    #[arg(long)]
+    pub quiet: bool,
+}
+
+/// Run the command.
+pub fn run(args: EvalArgs) -> anyhow::Result<()> {
+    if args.summarize_only {
+        let s = summarize(&args.out)?;
+        print!("{}", dips_eval::summary::markdown(&s));
+        return Ok(());
+    }
+    let task = SceneKind::from_name(&args.task).with_context(|| {
+        format!(
+            "unknown task `{}` (expected screwdriver or card)",
+            args.task
+        )
+    })?;
+    let methods = match &args.methods {
+        Some(names) => names
+            .iter()
+            .map(|n| Method::from_name(n.trim()))
+            .collect::<anyhow::Result<Vec<_>>>()?,
+        None => Method::ALL.to_vec(),
+    };
+    let settings = EvalSettings {
+        task,
+        methods,
+        trials: args.trials,
+        first_seed: args.first_seed,
+        shard: args.shard,
+        jobs: args
+            .jobs
+            .unwrap_or_else(|| std::thread::available_parallelism().map_or(2, |n| n.get())),
+        sampler: args.sampler.clone(),
+        online: OnlineSettings {
+            time_budget_s: args.time_budget_s,
+            node_budget: args.node_budget,
+            sampler: parse_sampler(&args.sampler)?,
+            sequence: None,
+            max_modes: args.max_modes,
+        },
+        models: models_dir(args.models.as_deref(), task.task())?,
+        engine: args.engine.into(),
+        progress: !args.quiet,
+        stop_after: None,
+    };
+    let report = run_eval(&settings, &args.out)?;
+    eprintln!(
+        "eval {}: {} episodes run ({} with errors), {} already done, {:.0} s",
+        task.name(),
+        report.ran,
+        report.errors,
+        report.skipped,
+        report.seconds
+    );
+    let s = summarize(&args.out)?;
+    print!("{}", dips_eval::summary::markdown(&s));
+    eprintln!("wrote {}", args.out.join("results.json").display());
+    Ok(())
+}

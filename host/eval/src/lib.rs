@@ -1,0 +1,27 @@
+//! `dips eval`: the paper's experiments. Every method of a list runs the same trials (trial
+//! `i` has seed `first_seed + i` for every method, so methods are compared on the same
+//! starts), two episodes at a time on two cores, each episode's `result.json` kept for replay.
+//!
+//! - [`settings`]: what an evaluation is, and `eval.json`, which a resumed run must agree with.
+//! - [`run`]: the episodes of one shard, resumable (finished episodes are files and are
+//!   skipped; a kill loses only the episodes in flight), with a progress bar and ETA.
+//! - [`summary`]: `results.json`, the Markdown table and the box plots from whatever episodes
+//!   are in the directory (all shards).
+//!
+//! Layout of an evaluation directory:
+//!
+//! ```text
+//! DIR/eval.json                              the settings (checked on resume)
+//! DIR/episodes/<method>/seed-<seed>/result.json   one episode (dips episode's format)
+//! DIR/episodes/<method>/seed-<seed>/log.txt       its progress lines
+//! DIR/episodes/<method>/seed-<seed>/wall.json     its wall time
+//! DIR/results.json, DIR/results.md, DIR/outcome.{svg,png}, DIR/planning.{svg,png}
+//! ```
+
+pub mod run;
+pub mod settings;
+pub mod summary;
+
+pub use run::{EvalReport, run_eval};
+pub use settings::{EpisodeSettings, EvalSettings};
+pub use summary::{Summary, summarize};

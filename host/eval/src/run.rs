@@ -1,0 +1,212 @@
+//! The episodes of one shard on `jobs` threads: resumable, atomic, with a progress bar.
+
+use std::io::Write;
+use std::path::Path;
+use std::sync::Mutex;
+use std::sync::atomic::{AtomicUsize, Ordering};
+use std::time::Instant;
+
+use anyhow::{Context, anyhow};
+use dips_host::atomic_write::write_atomic;
+use dips_host::execute::ExecSettings;
+use dips_host::online::{Method, run_online};
+use dips_host::planning::Models;
+use dips_host::world::World;
+use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
+use rayon::prelude::*;
+use serde::{Deserialize, Serialize};
+
+use crate::settings::{EvalSettings, claim_dir, episode_dir};
+
+/// `wall.json` of an episode: its wall time, and the error that ended it, if one did.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct EpisodeWall {
+    /// Wall time of the episode (s), with `jobs` episodes in flight.
+    pub seconds: f64,
+    /// Episodes that ran at once.
+    pub jobs: usize,
+    /// Why the episode stopped without a result (the world or the optimiser failed); such an
+    /// episode counts as a failed trial and is not run again.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub error: Option<String>,
+}
+
+/// The file of an episode's wall time.
+pub const WALL_FILE: &str = "wall.json";
+
+/// Whether the episode in `dir` has finished (a result, or a recorded error).
+pub fn finished(dir: &Path) -> bool {
+    let wall = std::fs::read_to_string(dir.join(WALL_FILE))
+        .ok()
+        .and_then(|t| serde_json::from_str::<EpisodeWall>(&t).ok());
+    match wall {
+        Some(w) if w.error.is_some() => true,
+        Some(_) => std::fs::read_to_string(dir.join("result.json"))
+            .ok()
+            .is_some_and(|t| serde_json::from_str::<serde_json::Value>(&t).is_ok()),
+        None => false,
+    }
+}
+
+/// What a run did.
+#[derive(Debug, Clone, Serialize)]
+pub struct EvalReport {
+    /// Episodes run by this call.
+    pub ran: usize,
+    /// Episodes of this shard that were already there (resumed).
+    pub skipped: usize,
+    /// Episodes that ended with an error (recorded, counted as failures).
+    pub errors: usize,
+    /// Wall time of this call (s).
+    pub seconds: f64,
+}
+
+/// Run one episode into `dir`: `result.json` (or the error in `wall.json`), `log.txt`,
+/// `wall.json` last, so that an episode counts as finished only when all is written.
+fn run_episode(
+    settings: &EvalSettings,
+    method: Method,
+    seed: u64,
+    dir: &Path,
+) -> anyhow::Result<Option<String>> {
+    std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+    let t0 = Instant::now();
+    let mut log = Vec::new();
+    let outcome = (|| {
+        let models = if method.needs_models() {
+            Some(Models::load(
+                settings.engine,
+                &settings.models,
+                settings.task.task(),
+            )?)
+        } else {
+            None
+        };
+        let exec = ExecSettings::for_task(settings.task);
+        let mut world = World::new(settings.task);
+        let mut progress = |line: &str| {
+            let _ = writeln!(log, "[{:8.1} s] {line}", t0.elapsed().as_secs_f64());
+        };
+        run_online(
+            &mut world,
+            method,
+            seed,
+            models,
+            &exec,
+            &settings.online,
+            &mut progress,
+        )
+    })();
+    let error = match outcome {
+        Ok(result) => {
+            result
+                .write(dir)
+                .with_context(|| format!("writing {}", dir.join("result.json").display()))?;
+            None
+        }
+        Err(e) => Some(format!("{e:#}")),
+    };
+    write_atomic(&dir.join("log.txt"), &log)
+        .with_context(|| format!("writing {}", dir.join("log.txt").display()))?;
+    let wall = EpisodeWall {
+        seconds: t0.elapsed().as_secs_f64(),
+        jobs: settings.jobs,
+        error: error.clone(),
+    };
+    write_atomic(
+        &dir.join(WALL_FILE),
+        serde_json::to_string_pretty(&wall)?.as_bytes(),
+    )
+    .with_context(|| format!("writing {}", dir.join(WALL_FILE).display()))?;
+    Ok(error)
+}
+
+/// Run this shard's unfinished episodes into `dir`, `settings.jobs` at a time.
+///
+/// The models are loaded once up front, so a missing or broken model fails here and not in
+/// every episode. An I/O failure stops the run (finished episodes stay); an episode whose
+/// world or optimiser fails is recorded as a failed trial and the run goes on.
+pub fn run_eval(settings: &EvalSettings, dir: &Path) -> anyhow::Result<EvalReport> {
+    settings.validate()?;
+    claim_dir(dir, settings)?;
+    if settings.methods.iter().any(|m| m.needs_models()) {
+        Models::load(settings.engine, &settings.models, settings.task.task())
+            .with_context(|| format!("loading the models in {}", settings.models.display()))?;
+    }
+    let episodes = settings.episodes();
+    let mut pending: Vec<(Method, u64)> = episodes
+        .iter()
+        .copied()
+        .filter(|(m, s)| !finished(&episode_dir(dir, m.name(), *s)))
+        .collect();
+    let skipped = episodes.len() - pending.len();
+    if let Some(n) = settings.stop_after {
+        pending.truncate(n);
+    }
+    let bar = ProgressBar::with_draw_target(
+        Some(pending.len() as u64),
+        if settings.progress {
+            ProgressDrawTarget::stderr()
+        } else {
+            ProgressDrawTarget::hidden()
+        },
+    );
+    bar.set_style(
+        ProgressStyle::with_template(
+            "{prefix} [{elapsed_precise}] {wide_bar} {pos}/{len} episodes, ETA {eta} {msg}",
+        )
+        .unwrap_or_else(|_| ProgressStyle::default_bar()),
+    );
+    bar.set_prefix(format!(
+        "eval {} shard {}",
+        settings.task.name(),
+        settings.shard
+    ));
+    if skipped > 0 {
+        bar.println(format!(
+            "resuming: {skipped} of this shard's {} episodes are done",
+            episodes.len()
+        ));
+    }
+    let started = Instant::now();
+    let errors = AtomicUsize::new(0);
+    let failure: Mutex<Option<anyhow::Error>> = Mutex::new(None);
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(settings.jobs)
+        .build()
+        .map_err(|e| anyhow!("thread pool: {e}"))?;
+    pool.install(|| {
+        pending
+            .par_iter()
+            .with_max_len(1)
+            .for_each(|&(method, seed)| {
+                if failure.lock().map(|f| f.is_some()).unwrap_or(true) {
+                    return;
+                }
+                let ep_dir = episode_dir(dir, method.name(), seed);
+                match run_episode(settings, method, seed, &ep_dir) {
+                    Ok(None) => bar.set_message(format!("last: {} seed {seed}", method.name())),
+                    Ok(Some(e)) => {
+                        errors.fetch_add(1, Ordering::Relaxed);
+                        bar.println(format!("{} seed {seed} failed: {e}", method.name()));
+                    }
+                    Err(e) => {
+                        if let Ok(mut f) = failure.lock() {
+                            f.get_or_insert(e);
+                        }
+                    }
+                }
+                bar.inc(1);
+            });
+    });
+    bar.finish_and_clear();
+    if let Some(e) = failure.into_inner().ok().flatten() {
+        return Err(e);
+    }
+    Ok(EvalReport {
+        ran: pending.len(),
+        skipped,
+        errors: errors.into_inner(),
+        seconds: started.elapsed().as_secs_f64(),
+    })
+}

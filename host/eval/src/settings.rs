@@ -1,0 +1,222 @@
+//! What an evaluation is, and its `eval.json`.
+
+use std::path::{Path, PathBuf};
+
+use anyhow::{Context, bail};
+use dips_datagen::Shard;
+use dips_host::online::{Method, OnlineSettings};
+use dips_host::planning::parse_sampler;
+use dips_host::scenes::SceneKind;
+use dips_onnx::EngineKind;
+use serde::{Deserialize, Serialize};
+
+/// What makes two episodes of one method and seed the same: a resumed evaluation must agree
+/// on all of it (`eval.json`), or its table would mix settings.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct EpisodeSettings {
+    /// Task name.
+    pub task: String,
+    /// Sampler name (`ddpm` or `ddim:S`).
+    pub sampler: String,
+    /// Wall-clock budget of one planning call (s).
+    pub time_budget_s: f64,
+    /// Most expansions per planning call (0: the planner's capacity).
+    pub node_budget: u32,
+    /// Mode limit per episode (`None`: the task's).
+    pub max_modes: Option<usize>,
+    /// Models directory (absolute).
+    pub models: String,
+    /// Engine of the models (`kernel` or `tract`).
+    pub engine: String,
+}
+
+/// One evaluation run (this machine's shard of it).
+#[derive(Debug, Clone)]
+pub struct EvalSettings {
+    /// The task.
+    pub task: SceneKind,
+    /// The methods, in table order.
+    pub methods: Vec<Method>,
+    /// Trials per method.
+    pub trials: usize,
+    /// Seed of trial 0; trial `i` has seed `first_seed + i` for every method.
+    pub first_seed: u64,
+    /// The episodes (method × trial, in that order) this run takes.
+    pub shard: Shard,
+    /// Episodes run at once.
+    pub jobs: usize,
+    /// Sampler name, as given (`ddpm` or `ddim:S`).
+    pub sampler: String,
+    /// Planning budgets and the mode limit.
+    pub online: OnlineSettings,
+    /// Models directory.
+    pub models: PathBuf,
+    /// Engine of the models.
+    pub engine: EngineKind,
+    /// Draw a progress bar on stderr.
+    pub progress: bool,
+    /// Stop after this many new episodes (tests simulate a kill with it).
+    pub stop_after: Option<usize>,
+}
+
+impl EvalSettings {
+    /// Check the settings; the error names the flag and what is allowed.
+    pub fn validate(&self) -> anyhow::Result<()> {
+        if self.methods.is_empty() {
+            bail!(
+                "--methods is empty; available: {}",
+                Method::ALL.map(Method::name).join(", ")
+            );
+        }
+        for (i, m) in self.methods.iter().enumerate() {
+            if self.methods[..i].contains(m) {
+                bail!("--methods names {} twice", m.name());
+            }
+        }
+        if self.trials == 0 {
+            bail!("--trials must be at least 1");
+        }
+        if self.jobs == 0 {
+            bail!("--jobs must be at least 1");
+        }
+        if self.first_seed.checked_add(self.trials as u64).is_none() {
+            bail!("--first-seed + --trials overflows the seed range");
+        }
+        if !(self.online.time_budget_s.is_finite() && self.online.time_budget_s >= 0.0) {
+            bail!("--time-budget-s must be a finite number of seconds ≥ 0");
+        }
+        if self.online.max_modes == Some(0) {
+            bail!("--max-modes must be at least 1");
+        }
+        parse_sampler(&self.sampler)?;
+        Ok(())
+    }
+
+    /// The seed of trial `i`.
+    pub fn seed(&self, trial: usize) -> u64 {
+        self.first_seed + trial as u64
+    }
+
+    /// Every (method, seed) of the evaluation in table order, and this shard's part of it.
+    pub fn episodes(&self) -> Vec<(Method, u64)> {
+        let all: Vec<(Method, u64)> = self
+            .methods
+            .iter()
+            .flat_map(|&m| (0..self.trials).map(move |i| (m, i)))
+            .map(|(m, i)| (m, self.seed(i)))
+            .collect();
+        all.into_iter()
+            .enumerate()
+            .filter(|(i, _)| i % self.shard.count == self.shard.index)
+            .map(|(_, e)| e)
+            .collect()
+    }
+
+    /// The settings every episode of the directory must share.
+    pub fn episode_settings(&self) -> EpisodeSettings {
+        EpisodeSettings {
+            task: self.task.name().to_string(),
+            sampler: self.sampler.clone(),
+            time_budget_s: self.online.time_budget_s,
+            node_budget: self.online.node_budget,
+            max_modes: self.online.max_modes,
+            models: std::path::absolute(&self.models)
+                .unwrap_or_else(|_| self.models.clone())
+                .display()
+                .to_string(),
+            engine: match self.engine {
+                EngineKind::Kernel => "kernel",
+                EngineKind::Tract => "tract",
+            }
+            .to_string(),
+        }
+    }
+}
+
+/// `eval.json`: the episode settings and the union of methods and seeds asked for so far.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct EvalFile {
+    /// What every episode shares.
+    pub episode: EpisodeSettings,
+    /// Methods, in table order (new ones are appended on resume).
+    pub methods: Vec<String>,
+    /// Seed of trial 0.
+    pub first_seed: u64,
+    /// Trials per method (the largest asked for).
+    pub trials: usize,
+}
+
+/// The file name of the settings.
+pub const EVAL_FILE: &str = "eval.json";
+
+/// Read `dir/eval.json` if present.
+pub fn read_eval_file(dir: &Path) -> anyhow::Result<Option<EvalFile>> {
+    let path = dir.join(EVAL_FILE);
+    if !path.exists() {
+        return Ok(None);
+    }
+    let text =
+        std::fs::read_to_string(&path).with_context(|| format!("reading {}", path.display()))?;
+    let file = serde_json::from_str(&text).with_context(|| {
+        format!(
+            "{} is not an eval settings file (delete it to start over)",
+            path.display()
+        )
+    })?;
+    Ok(Some(file))
+}
+
+/// Write `dir/eval.json` for `settings`, merged with the file already there; errors when the
+/// directory holds episodes of other settings.
+pub fn claim_dir(dir: &Path, settings: &EvalSettings) -> anyhow::Result<EvalFile> {
+    std::fs::create_dir_all(dir)
+        .with_context(|| format!("cannot create the output directory {}", dir.display()))?;
+    let episode = settings.episode_settings();
+    let mut file = EvalFile {
+        episode: episode.clone(),
+        methods: settings
+            .methods
+            .iter()
+            .map(|m| m.name().to_string())
+            .collect(),
+        first_seed: settings.first_seed,
+        trials: settings.trials,
+    };
+    if let Some(old) = read_eval_file(dir)? {
+        if old.episode != episode {
+            bail!(
+                "{} holds an evaluation with other settings ({}); use another --out, or the same \
+                 task, sampler, budgets, mode limit, models and engine",
+                dir.join(EVAL_FILE).display(),
+                serde_json::to_string(&old.episode).unwrap_or_default()
+            );
+        }
+        if old.first_seed != settings.first_seed {
+            bail!(
+                "{} was started with --first-seed {}; this run asks for {}",
+                dir.join(EVAL_FILE).display(),
+                old.first_seed,
+                settings.first_seed
+            );
+        }
+        let mut methods = old.methods.clone();
+        for m in &file.methods {
+            if !methods.contains(m) {
+                methods.push(m.clone());
+            }
+        }
+        file.methods = methods;
+        file.trials = file.trials.max(old.trials);
+    }
+    let text = serde_json::to_string_pretty(&file)?;
+    dips_host::atomic_write::write_atomic(&dir.join(EVAL_FILE), text.as_bytes())
+        .with_context(|| format!("writing {}", dir.join(EVAL_FILE).display()))?;
+    Ok(file)
+}
+
+/// The directory of one episode.
+pub fn episode_dir(dir: &Path, method: &str, seed: u64) -> PathBuf {
+    dir.join("episodes")
+        .join(method)
+        .join(format!("seed-{seed}"))
+}

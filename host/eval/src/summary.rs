@@ -1,0 +1,417 @@
+//! `results.json`, `results.md` and the box plots of an evaluation directory, from every
+//! finished episode in it (all shards).
+
+use std::path::Path;
+
+use anyhow::Context;
+use dips_host::atomic_write::write_atomic;
+use dips_plot::{BoxPlot, BoxSeries};
+use serde::{Deserialize, Serialize};
+
+use crate::run::{EpisodeWall, WALL_FILE};
+use crate::settings::{EvalFile, episode_dir, read_eval_file};
+
+/// The fields of an episode's `result.json` the summary reads.
+#[derive(Debug, Clone, Deserialize)]
+pub struct EpisodeView {
+    /// Method name.
+    pub method: String,
+    /// Seed.
+    pub seed: u64,
+    /// Executed modes.
+    pub modes: Vec<String>,
+    /// Final yaw (screwdriver, rad).
+    #[serde(default)]
+    pub final_yaw: Option<f64>,
+    /// Final distance of the card to its goal (m).
+    #[serde(default)]
+    pub final_distance_m: Option<f64>,
+    /// Whether the object stayed valid.
+    pub valid: bool,
+    /// Planning time per call (s).
+    pub planning_s: Vec<f64>,
+    /// CSVTO time per online step (s).
+    pub csvto_step_s: Vec<f64>,
+}
+
+/// One trial in `results.json`.
+#[derive(Debug, Clone, Serialize)]
+pub struct Trial {
+    /// Method name.
+    pub method: String,
+    /// Seed.
+    pub seed: u64,
+    /// The outcome (final yaw in rad, or distance to the goal in cm); `None` when the episode
+    /// ended with an error.
+    pub outcome: Option<f64>,
+    /// Whether the object stayed valid (false for an error).
+    pub valid: bool,
+    /// Executed modes.
+    pub modes: Vec<String>,
+    /// Planning calls (s).
+    pub planning_s: Vec<f64>,
+    /// Median CSVTO step time (s).
+    pub csvto_step_median_s: Option<f64>,
+    /// Wall time of the episode (s).
+    pub wall_s: f64,
+    /// The error that ended the episode, if one did.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub error: Option<String>,
+}
+
+/// Mean, spread and order statistics of some values.
+#[derive(Debug, Clone, Copy, Serialize, PartialEq)]
+pub struct Stats {
+    /// How many values.
+    pub n: usize,
+    /// Mean.
+    pub mean: f64,
+    /// Sample standard deviation (0 for one value).
+    pub std: f64,
+    /// Median.
+    pub median: f64,
+    /// 90th percentile (linear interpolation).
+    pub p90: f64,
+    /// Smallest.
+    pub min: f64,
+    /// Largest.
+    pub max: f64,
+}
+
+impl Stats {
+    /// The statistics of the finite values; `None` when there is none.
+    pub fn of(values: &[f64]) -> Option<Stats> {
+        let mut v: Vec<f64> = values.iter().copied().filter(|x| x.is_finite()).collect();
+        if v.is_empty() {
+            return None;
+        }
+        v.sort_by(f64::total_cmp);
+        let n = v.len();
+        let mean = v.iter().sum::<f64>() / n as f64;
+        let var = if n > 1 {
+            v.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / (n - 1) as f64
+        } else {
+            0.0
+        };
+        Some(Stats {
+            n,
+            mean,
+            std: var.sqrt(),
+            median: quantile(&v, 0.5),
+            p90: quantile(&v, 0.9),
+            min: v[0],
+            max: v[n - 1],
+        })
+    }
+}
+
+/// Quantile `q` of sorted values (linear interpolation between order statistics).
+fn quantile(sorted: &[f64], q: f64) -> f64 {
+    let pos = q * (sorted.len() - 1) as f64;
+    let (i, frac) = (pos.floor() as usize, pos - pos.floor());
+    let next = sorted[(i + 1).min(sorted.len() - 1)];
+    sorted[i] + frac * (next - sorted[i])
+}
+
+/// One method's row.
+#[derive(Debug, Clone, Serialize)]
+pub struct MethodSummary {
+    /// Method name.
+    pub method: String,
+    /// Finished trials.
+    pub trials: usize,
+    /// Trials that ended with an error.
+    pub errors: usize,
+    /// Trials in which the object stayed valid.
+    pub valid: usize,
+    /// The outcome over the trials with one.
+    pub outcome: Option<Stats>,
+    /// Every planning call of every trial (s).
+    pub planning_s: Option<Stats>,
+    /// Per-trial median CSVTO step time (s).
+    pub csvto_step_s: Option<Stats>,
+    /// Episode wall time (s).
+    pub wall_s: Option<Stats>,
+}
+
+/// `results.json`.
+#[derive(Debug, Clone, Serialize)]
+pub struct Summary {
+    /// Task name.
+    pub task: String,
+    /// The evaluation's settings.
+    pub eval: EvalFile,
+    /// What the outcome is, with its unit.
+    pub outcome: &'static str,
+    /// Whether a lower outcome is better (both tasks: yes).
+    pub lower_is_better: bool,
+    /// One row per method, in `eval.json`'s order.
+    pub methods: Vec<MethodSummary>,
+    /// Every finished trial.
+    pub trials: Vec<Trial>,
+    /// Sum of the episodes' wall times (s); divide by the jobs for the elapsed time.
+    pub episode_wall_total_s: f64,
+}
+
+fn read_trial(dir: &Path, method: &str, seed: u64, task: &str) -> anyhow::Result<Option<Trial>> {
+    let ep = episode_dir(dir, method, seed);
+    let Ok(text) = std::fs::read_to_string(ep.join(WALL_FILE)) else {
+        return Ok(None);
+    };
+    let wall: EpisodeWall = serde_json::from_str(&text)
+        .with_context(|| format!("{} is not a wall-time file", ep.join(WALL_FILE).display()))?;
+    if let Some(error) = wall.error {
+        return Ok(Some(Trial {
+            method: method.to_string(),
+            seed,
+            outcome: None,
+            valid: false,
+            modes: Vec::new(),
+            planning_s: Vec::new(),
+            csvto_step_median_s: None,
+            wall_s: wall.seconds,
+            error: Some(error),
+        }));
+    }
+    let path = ep.join("result.json");
+    let text =
+        std::fs::read_to_string(&path).with_context(|| format!("reading {}", path.display()))?;
+    let r: EpisodeView = serde_json::from_str(&text)
+        .with_context(|| format!("{} is not an episode result", path.display()))?;
+    let outcome = match task {
+        "screwdriver" => r.final_yaw,
+        _ => r.final_distance_m.map(|d| d * 100.0),
+    };
+    Ok(Some(Trial {
+        method: r.method,
+        seed: r.seed,
+        outcome,
+        valid: r.valid,
+        modes: r.modes,
+        planning_s: r.planning_s,
+        csvto_step_median_s: Stats::of(&r.csvto_step_s).map(|s| s.median),
+        wall_s: wall.seconds,
+        error: None,
+    }))
+}
+
+/// Read every finished episode of `dir` and write `results.json`, `results.md` and the box
+/// plots (`outcome.svg/png`, `planning.svg/png`).
+pub fn summarize(dir: &Path) -> anyhow::Result<Summary> {
+    let eval =
+        read_eval_file(dir)?.with_context(|| format!("{} holds no eval.json", dir.display()))?;
+    let task = eval.episode.task.clone();
+    let mut trials = Vec::new();
+    let mut methods = Vec::new();
+    for m in &eval.methods {
+        let mine: Vec<Trial> = (0..eval.trials)
+            .map(|i| read_trial(dir, m, eval.first_seed + i as u64, &task))
+            .filter_map(Result::transpose)
+            .collect::<anyhow::Result<_>>()?;
+        let outcomes: Vec<f64> = mine.iter().filter_map(|t| t.outcome).collect();
+        let planning: Vec<f64> = mine.iter().flat_map(|t| t.planning_s.clone()).collect();
+        let csvto: Vec<f64> = mine.iter().filter_map(|t| t.csvto_step_median_s).collect();
+        let wall: Vec<f64> = mine.iter().map(|t| t.wall_s).collect();
+        methods.push(MethodSummary {
+            method: m.clone(),
+            trials: mine.len(),
+            errors: mine.iter().filter(|t| t.error.is_some()).count(),
+            valid: mine.iter().filter(|t| t.valid).count(),
+            outcome: Stats::of(&outcomes),
+            planning_s: Stats::of(&planning),
+            csvto_step_s: Stats::of(&csvto),
+            wall_s: Stats::of(&wall),
+        });
+        trials.extend(mine);
+    }
+    let summary = Summary {
+        outcome: if task == "screwdriver" {
+            "final yaw (rad; clockwise is negative, the goal is to turn)"
+        } else {
+            "final distance of the card to its goal (cm)"
+        },
+        lower_is_better: true,
+        episode_wall_total_s: trials.iter().map(|t| t.wall_s).sum(),
+        task,
+        eval,
+        methods,
+        trials,
+    };
+    let write = |name: &str, bytes: &[u8]| {
+        write_atomic(&dir.join(name), bytes)
+            .with_context(|| format!("writing {}", dir.join(name).display()))
+    };
+    write(
+        "results.json",
+        serde_json::to_string_pretty(&summary)?.as_bytes(),
+    )?;
+    write("results.md", markdown(&summary).as_bytes())?;
+    for (name, plot) in figures(&summary) {
+        match (plot.svg(), plot.png()) {
+            (Ok(svg), Ok(png)) => {
+                write(&format!("{name}.svg"), svg.as_bytes())?;
+                write(&format!("{name}.png"), &png)?;
+            }
+            // Nothing finished yet: no figure, the table says so.
+            (Err(dips_plot::PlotError::Empty(_)), _) | (_, Err(dips_plot::PlotError::Empty(_))) => {
+            }
+            (Err(e), _) | (_, Err(e)) => return Err(e).context(format!("drawing {name}")),
+        }
+    }
+    Ok(summary)
+}
+
+fn figures(s: &Summary) -> Vec<(&'static str, BoxPlot)> {
+    let screwdriver = s.task == "screwdriver";
+    let per_method = |f: &dyn Fn(&Trial) -> Vec<f64>| -> Vec<BoxSeries> {
+        s.methods
+            .iter()
+            .map(|m| BoxSeries {
+                label: m.method.clone(),
+                values: s
+                    .trials
+                    .iter()
+                    .filter(|t| t.method == m.method)
+                    .flat_map(f)
+                    .collect(),
+            })
+            .collect()
+    };
+    let n = s.eval.trials;
+    vec![
+        (
+            "outcome",
+            BoxPlot {
+                title: if screwdriver {
+                    format!("Screwdriver: final yaw per trial ({n} trials per method)")
+                } else {
+                    format!("Card: distance to the goal per trial ({n} trials per method)")
+                },
+                x_label: "method".into(),
+                y_label: if screwdriver {
+                    "final yaw (rad), lower = turned further".into()
+                } else {
+                    "final distance to goal (cm)".into()
+                },
+                series: per_method(&|t| t.outcome.into_iter().collect()),
+                reference: if screwdriver {
+                    None
+                } else {
+                    Some((0.0, "goal".into()))
+                },
+                size: (960, 540),
+            },
+        ),
+        (
+            "planning",
+            BoxPlot {
+                title: format!(
+                    "{}: planning-call wall time (every call of every trial)",
+                    if screwdriver { "Screwdriver" } else { "Card" }
+                ),
+                x_label: "method".into(),
+                y_label: "planning call (s)".into(),
+                series: per_method(&|t| t.planning_s.clone()),
+                reference: None,
+                size: (960, 540),
+            },
+        ),
+    ]
+}
+
+fn fmt_opt(v: Option<f64>, digits: usize) -> String {
+    v.map_or_else(|| "–".to_string(), |x| format!("{x:.digits$}"))
+}
+
+/// The Markdown table of a summary.
+pub fn markdown(s: &Summary) -> String {
+    let screwdriver = s.task == "screwdriver";
+    let (what, unit, digits) = if screwdriver {
+        ("final yaw", "rad", 3)
+    } else {
+        ("distance to goal", "cm", 2)
+    };
+    let e = &s.eval.episode;
+    let mut out = format!(
+        "# dips eval: {}\n\nSampler `{}`, planning budget {} s / {} expansions, engine {}, \
+         seeds {}…{}. Lower is better. Every trial's `result.json` is under `episodes/`.\n\n",
+        s.task,
+        e.sampler,
+        e.time_budget_s,
+        if e.node_budget == 0 {
+            "unlimited".to_string()
+        } else {
+            e.node_budget.to_string()
+        },
+        e.engine,
+        s.eval.first_seed,
+        s.eval.first_seed + s.eval.trials.saturating_sub(1) as u64,
+    );
+    out.push_str(&format!(
+        "| method | trials | valid | {what} mean ± std ({unit}) | median | planning call median / p90 (s) | CSVTO step median (s) | episode wall median (s) |\n\
+         |---|---|---|---|---|---|---|---|\n"
+    ));
+    for m in &s.methods {
+        let o = m.outcome;
+        out.push_str(&format!(
+            "| {} | {}{} | {}/{} | {} | {} | {} / {} | {} | {} |\n",
+            m.method,
+            m.trials,
+            if m.errors > 0 {
+                format!(" ({} errors)", m.errors)
+            } else {
+                String::new()
+            },
+            m.valid,
+            m.trials,
+            o.map_or_else(
+                || "–".into(),
+                |o| format!("{:.digits$} ± {:.digits$}", o.mean, o.std)
+            ),
+            fmt_opt(o.map(|o| o.median), digits),
+            fmt_opt(m.planning_s.map(|p| p.median), 2),
+            fmt_opt(m.planning_s.map(|p| p.p90), 2),
+            fmt_opt(m.csvto_step_s.map(|c| c.median), 3),
+            fmt_opt(m.wall_s.map(|w| w.median), 0),
+        ));
+    }
+    if screwdriver && let Some(dips) = s.methods.iter().find(|m| m.method == "dips") {
+        let turned = |m: &MethodSummary| m.outcome.map(|o| -o.mean);
+        if let Some(d) = turned(dips) {
+            out.push_str("\nTurned by `dips` relative to each other method (mean −yaw): ");
+            let parts: Vec<String> = s
+                .methods
+                .iter()
+                .filter(|m| m.method != "dips")
+                .filter_map(|m| turned(m).map(|t| (m, t)))
+                .map(|(m, t)| format!("{:+.0} % vs {}", 100.0 * (d - t) / t.abs(), m.method))
+                .collect();
+            out.push_str(&parts.join(", "));
+            out.push_str(".\n");
+        }
+    }
+    out.push_str(&format!(
+        "\nEpisode wall times sum to {:.0} s. Figures: `outcome.svg` / `outcome.png` (per-trial \
+         outcome), `planning.svg` / `planning.png` (planning-call times).\n",
+        s.episode_wall_total_s
+    ));
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn stats_of_known_values() {
+        let s = Stats::of(&[4.0, 1.0, 3.0, 2.0, f64::NAN]).unwrap();
+        assert_eq!(s.n, 4);
+        assert_eq!(s.mean, 2.5);
+        assert_eq!(s.median, 2.5);
+        assert!((s.p90 - 3.7).abs() < 1e-12);
+        assert!((s.std - (5.0f64 / 3.0).sqrt()).abs() < 1e-12);
+        assert_eq!((s.min, s.max), (1.0, 4.0));
+        assert!(Stats::of(&[f64::NAN]).is_none());
+        assert_eq!(Stats::of(&[2.0]).unwrap().std, 0.0);
+    }
+}

@@ -1,0 +1,116 @@
+//! `dips eval`'s runner and summary on short card episodes (one mode each): every method
+//! runs, a killed evaluation resumes without redoing finished episodes, and a directory of
+//! other settings is refused.
+
+use std::path::PathBuf;
+
+use dips_datagen::Shard;
+use dips_eval::{EvalSettings, run_eval, summarize};
+use dips_host::online::{Method, OnlineSettings};
+use dips_host::planning::{default_models_dir, parse_sampler};
+use dips_host::scenes::SceneKind;
+use dips_kernel::mode::Task;
+use dips_onnx::EngineKind;
+
+fn scratch(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("dips-eval-{name}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    d
+}
+
+fn settings(methods: Vec<Method>, trials: usize) -> EvalSettings {
+    EvalSettings {
+        task: SceneKind::Card,
+        methods,
+        trials,
+        first_seed: 1000,
+        shard: Shard::ALL,
+        jobs: 2,
+        sampler: "ddim:8".into(),
+        online: OnlineSettings {
+            time_budget_s: 60.0,
+            node_budget: 3,
+            sampler: parse_sampler("ddim:8").unwrap(),
+            sequence: None,
+            max_modes: Some(1),
+        },
+        models: default_models_dir(Task::Card).unwrap(),
+        engine: EngineKind::Kernel,
+        progress: false,
+        stop_after: None,
+    }
+}
+
+#[test]
+fn a_killed_eval_resumes_without_redoing_episodes() {
+    let dir = scratch("resume");
+    let mut s = settings(vec![Method::CsvtoSampled], 3);
+    s.stop_after = Some(1);
+    let first = run_eval(&s, &dir).unwrap();
+    assert_eq!((first.ran, first.skipped), (1, 0));
+    let done = dir.join("episodes/csvto-sampled/seed-1000/result.json");
+    let before = std::fs::read(&done).unwrap();
+    let stamp = std::fs::metadata(&done).unwrap().modified().unwrap();
+    // An episode killed midway leaves a result without its wall.json: it is run again.
+    let partial = dir.join("episodes/csvto-sampled/seed-1001");
+    std::fs::create_dir_all(&partial).unwrap();
+    std::fs::write(partial.join("result.json"), b"{\"cut off").unwrap();
+
+    s.stop_after = None;
+    let second = run_eval(&s, &dir).unwrap();
+    assert_eq!((second.ran, second.skipped), (2, 1));
+    assert_eq!(std::fs::read(&done).unwrap(), before);
+    assert_eq!(std::fs::metadata(&done).unwrap().modified().unwrap(), stamp);
+
+    let summary = summarize(&dir).unwrap();
+    assert_eq!(summary.methods.len(), 1);
+    assert_eq!(summary.methods[0].trials, 3);
+    assert_eq!(summary.trials.len(), 3);
+    let seeds: Vec<u64> = summary.trials.iter().map(|t| t.seed).collect();
+    assert_eq!(seeds, [1000, 1001, 1002]);
+    for f in ["results.json", "results.md", "outcome.svg", "outcome.png"] {
+        assert!(dir.join(f).exists(), "{f} missing");
+    }
+    let md = std::fs::read_to_string(dir.join("results.md")).unwrap();
+    assert!(md.contains("| csvto-sampled | 3 |"), "{md}");
+
+    // A third run finds nothing to do.
+    let third = run_eval(&s, &dir).unwrap();
+    assert_eq!((third.ran, third.skipped), (0, 3));
+
+    // Other settings in the same directory are refused, naming eval.json.
+    let mut other = settings(vec![Method::CsvtoSampled], 3);
+    other.sampler = "ddpm".into();
+    let err = run_eval(&other, &dir).unwrap_err().to_string();
+    assert!(err.contains("eval.json"), "{err}");
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn every_method_runs_one_mode() {
+    let dir = scratch("methods");
+    let s = settings(Method::ALL.to_vec(), 1);
+    let report = run_eval(&s, &dir).unwrap();
+    assert_eq!(report.ran, Method::ALL.len());
+    assert_eq!(report.errors, 0);
+    let summary = summarize(&dir).unwrap();
+    for (m, row) in Method::ALL.iter().zip(&summary.methods) {
+        assert_eq!(row.method, m.name());
+        assert_eq!(row.trials, 1);
+        let trial = summary
+            .trials
+            .iter()
+            .find(|t| t.method == m.name())
+            .unwrap();
+        assert_eq!(trial.modes.len(), 1, "{}: {:?}", m.name(), trial.modes);
+        assert!(trial.outcome.is_some_and(f64::is_finite), "{}", m.name());
+        // Searching methods plan once before their mode; fixed sequences never plan.
+        assert_eq!(
+            trial.planning_s.len(),
+            usize::from(m.searches()),
+            "{}",
+            m.name()
+        );
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}
