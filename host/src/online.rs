@@ -264,6 +264,12 @@ fn plan_call<H: Hand + ?Sized>(
             .map(|&v| v.is_finite().then_some(v))
             .collect(),
         nodes_expanded: report.stats.nodes_expanded,
+        segments_sampled: report.stats.segments_sampled,
+        particles: report.particles,
+        effective_particles: report
+            .effective_particles
+            .is_finite()
+            .then_some(report.effective_particles),
         seconds,
     };
     Ok((modes, record))

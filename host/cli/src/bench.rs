@@ -37,6 +37,8 @@ pub enum BenchCommand {
     Sim(super::bench_sim::BenchSimArgs),
     /// Seconds per online CSVTO step (screwdriver turn, N = 16, 25 iterations, H = 12).
     Csvto(super::bench_csvto::CsvtoBenchArgs),
+    /// Wall time of real planning calls with the shipped models from the task's start.
+    Plan(super::bench_plan::PlanBenchArgs),
 }
 
 /// `dips bench search`.
@@ -74,6 +76,7 @@ pub fn run(args: BenchArgs) -> anyhow::Result<()> {
         BenchCommand::Inference(a) => super::bench_inference::run(&a),
         BenchCommand::Sim(a) => super::bench_sim::main(a),
         BenchCommand::Csvto(a) => super::bench_csvto::run(a),
+        BenchCommand::Plan(a) => super::bench_plan::run(&a),
     }
 }
 

@@ -106,6 +106,14 @@ pub struct PlanRecord {
     pub expected_terminal_state: Vec<Option<f32>>,
     /// Node expansions.
     pub nodes_expanded: u32,
+    /// Diffused segments sampled over the call (`|modes| · k` per expansion; `|modes| · 16`
+    /// for the max-likelihood variant, which keeps the best of each 16).
+    pub segments_sampled: u32,
+    /// Particles of the plan's result node (`k`; 1 for `dips-k1` and
+    /// `dips-max-likelihood`).
+    pub particles: u8,
+    /// Effective particles of its normalised Ψ scores (`1 / Σ w²`).
+    pub effective_particles: Option<f32>,
     /// Wall time of the call (s).
     pub seconds: f64,
 }

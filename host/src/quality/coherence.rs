@@ -196,3 +196,137 @@ fn problem_for(
     )
     .ok()
 }
+
+/// The object's motion over one trajectory: the change of the task's progress coordinate from
+/// row 0 to the last row (screwdriver yaw in rad, wrapped to ±π; card `y` in m).
+pub fn progress_delta(task: Task, traj: &[f32]) -> f64 {
+    let dims = task.dims();
+    let (d, h) = (dims.dim(), dims.horizon - 1);
+    let layout = task.layout();
+    let col = match task {
+        Task::Screwdriver => 2,
+        Task::Card => 1,
+    };
+    let at = |r: usize| {
+        layout
+            .pose(&traj[r * d..(r + 1) * d])
+            .map_or(f64::NAN, |p| f64::from(p[col]))
+    };
+    let v = at(h) - at(0);
+    match task {
+        Task::Screwdriver => {
+            let tau = std::f64::consts::TAU;
+            (v + std::f64::consts::PI).rem_euclid(tau) - std::f64::consts::PI
+        }
+        Task::Card => v,
+    }
+}
+
+/// The object's motion in one contact mode: what the search reads from a diffused segment
+/// (its progress and the per-mode goal cost come from the object's columns).
+#[derive(Debug, Clone, PartialEq, Serialize, serde::Deserialize)]
+pub struct ModeMotion {
+    /// The contact vector (±1 per finger).
+    pub context: Vec<f32>,
+    /// Trajectories.
+    pub n: usize,
+    /// Mean progress change (rad or m).
+    pub mean: f64,
+    /// Its standard deviation.
+    pub std: f64,
+    /// Mean `|Δ − Δ_real|` against the real trajectory from the same start (diffused sets).
+    pub mean_abs_error: Option<f64>,
+}
+
+/// [`ModeMotion`] per contact vector of `trajs`; `real` (the same starts and contexts, in the
+/// same order) gives the paired error.
+pub fn object_motion(
+    task: Task,
+    trajs: &[f32],
+    contexts: &[f32],
+    real: Option<&[f32]>,
+) -> Vec<ModeMotion> {
+    let dims = task.dims();
+    let (td, f) = (dims.floats(), dims.fingers);
+    let mut groups: Vec<(Vec<f32>, Vec<f64>, Vec<f64>)> = Vec::new();
+    for (i, (traj, ctx)) in trajs
+        .chunks_exact(td)
+        .zip(contexts.chunks_exact(f))
+        .enumerate()
+    {
+        let delta = progress_delta(task, traj);
+        let err = real.map(|r| (delta - progress_delta(task, &r[i * td..(i + 1) * td])).abs());
+        let g = match groups.iter().position(|g| g.0 == ctx) {
+            Some(p) => &mut groups[p],
+            None => {
+                groups.push((ctx.to_vec(), Vec::new(), Vec::new()));
+                groups.last_mut().expect("just pushed")
+            }
+        };
+        g.1.push(delta);
+        g.2.extend(err);
+    }
+    groups.sort_by(|a, b| {
+        a.0.iter()
+            .map(|v| v.to_bits())
+            .cmp(b.0.iter().map(|v| v.to_bits()))
+    });
+    groups
+        .into_iter()
+        .map(|(context, d, e)| {
+            let n = d.len();
+            let mean = d.iter().sum::<f64>() / n as f64;
+            let std = (d.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / n as f64).sqrt();
+            ModeMotion {
+                context,
+                n,
+                mean,
+                std,
+                mean_abs_error: (!e.is_empty()).then(|| e.iter().sum::<f64>() / e.len() as f64),
+            }
+        })
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A screwdriver trajectory whose yaw goes from `y0` by `dy` evenly over the rows.
+    fn screwdriver(y0: f32, dy: f32) -> Vec<f32> {
+        let dims = Task::Screwdriver.dims();
+        let (t, d) = (dims.horizon, dims.dim());
+        let c = Task::Screwdriver.layout().angle_cos();
+        let mut v = vec![0.0; t * d];
+        for r in 0..t {
+            let y = y0 + dy * r as f32 / (t - 1) as f32;
+            v[r * d + c] = y.cos();
+            v[r * d + c + 1] = y.sin();
+        }
+        v
+    }
+
+    #[test]
+    fn yaw_motion_wraps_and_pairs_with_the_real_one() {
+        // Across the ±π seam: from 3.0 by −0.5 is −0.5, not 2π − 0.5.
+        let a = screwdriver(3.0, 0.5);
+        assert!((progress_delta(Task::Screwdriver, &a) - 0.5).abs() < 1e-5);
+        let b = screwdriver(-3.0, -0.4);
+        assert!((progress_delta(Task::Screwdriver, &b) + 0.4).abs() < 1e-5);
+        let real: Vec<f32> = [screwdriver(0.0, -0.3), screwdriver(0.0, 0.0)].concat();
+        let diffused: Vec<f32> = [screwdriver(0.0, -0.1), screwdriver(0.0, 0.2)].concat();
+        let ctx = [1.0, 1.0, 1.0, 1.0, -1.0, -1.0];
+        let m = object_motion(Task::Screwdriver, &diffused, &ctx, Some(&real));
+        assert_eq!(m.len(), 2);
+        let turn = m.iter().find(|g| g.context == [1.0, 1.0, 1.0]).unwrap();
+        assert!((turn.mean + 0.1).abs() < 1e-5);
+        assert!((turn.mean_abs_error.unwrap() - 0.2).abs() < 1e-5);
+        let regrasp = m.iter().find(|g| g.context == [1.0, -1.0, -1.0]).unwrap();
+        assert!((regrasp.mean_abs_error.unwrap() - 0.2).abs() < 1e-5);
+        assert!(
+            object_motion(Task::Screwdriver, &real, &ctx, None)[0]
+                .mean_abs_error
+                .is_none()
+        );
+    }
+}

@@ -135,6 +135,14 @@ impl<const K: usize> Particles<K> {
         len: 0,
     };
 
+    /// `1 / Σ w²` of the normalised scores.
+    fn effective(&self) -> f32 {
+        let mut w = [0.0f32; K];
+        normalized_weights(&self.score[..self.len], &mut w[..self.len]);
+        let s2: f32 = w[..self.len].iter().map(|x| x * x).sum();
+        if s2 > 0.0 { 1.0 / s2 } else { f32::NAN }
+    }
+
     /// Score-weighted mean of the end states (uniform when every score is zero).
     fn mean_state(&self, sd: usize, out: &mut [f32; MAX_STATE_DIM]) {
         let mut w = [0.0f32; K];
@@ -153,6 +161,8 @@ impl<const K: usize> Particles<K> {
 struct Outcome {
     node: u16,
     state: [f32; MAX_STATE_DIM],
+    particles: u8,
+    effective: f32,
 }
 
 /// Read-only inputs of one call, gathered so the helpers take few arguments.
@@ -395,6 +405,8 @@ impl<const K: usize, const N: usize, const O: usize, const S: usize> Planner<K, 
                 best = Some(Outcome {
                     node: entry.node,
                     state,
+                    particles: u8::try_from(self.parent.len).unwrap_or(u8::MAX),
+                    effective: self.parent.effective(),
                 });
             }
             if objective.goal_reached(node.progress) {
@@ -403,6 +415,8 @@ impl<const K: usize, const N: usize, const O: usize, const S: usize> Planner<K, 
                 found = Some(Outcome {
                     node: entry.node,
                     state,
+                    particles: u8::try_from(self.parent.len).unwrap_or(u8::MAX),
+                    effective: self.parent.effective(),
                 });
                 break;
             }
@@ -667,6 +681,8 @@ impl<const K: usize, const N: usize, const O: usize, const S: usize> Planner<K, 
         report.terminal_cost = node.phi;
         report.cost_to_come = node.g;
         report.heuristic = node.h;
+        report.particles = outcome.particles;
+        report.effective_particles = outcome.effective;
         report
     }
 }

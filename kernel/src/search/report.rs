@@ -114,6 +114,12 @@ pub struct SearchReport {
     pub cost_to_come: f32,
     /// Heuristic `h` of the result node.
     pub heuristic: f32,
+    /// Particles the result node carries: `k`, or 1 for `k = 1` and the max-likelihood
+    /// variant; 0 when there is no plan.
+    pub particles: u8,
+    /// Effective particles of the result node's normalised scores, `1 / Σ w²` (how many of
+    /// them its weights keep); NaN when there is no plan.
+    pub effective_particles: f32,
     /// Counters.
     pub stats: SearchStats,
 }
@@ -130,6 +136,8 @@ impl SearchReport {
             terminal_cost: f32::NAN,
             cost_to_come: f32::NAN,
             heuristic: f32::NAN,
+            particles: 0,
+            effective_particles: f32::NAN,
             stats: SearchStats::default(),
         }
     }

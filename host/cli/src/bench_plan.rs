@@ -1,0 +1,137 @@
+//! `dips bench plan`: the wall time of real planning calls (the shipped or given models, the
+//! task's default search settings) from the task's start state, one call per seed.
+//!
+//! This is the figure the paper reports as A* time (46.8 s screwdriver, 64.9 s card on a
+//! GPU). The calls of whole episodes, from every state an episode visits, are in
+//! `dips eval`'s table (planning median / p90).
+
+use std::time::Instant;
+
+use anyhow::{Context, anyhow};
+use clap::Args;
+use dips_host::planning::{Models, PaperSession, StdClock, models_dir, parse_sampler};
+use dips_host::problems::contract::contract_state;
+use dips_host::scenes::SceneKind;
+use dips_host::world::World;
+use dips_kernel::search::SearchConfig;
+use dips_kernel::session::PlanSpec;
+use serde_json::json;
+
+use crate::model::EngineArg;
+
+/// `dips bench plan`.
+#[derive(Debug, Args)]
+pub struct PlanBenchArgs {
+    /// Task: `screwdriver` or `card`.
+    #[arg(long, default_value = "screwdriver")]
+    pub task: String,
+    /// Planning calls; call `i` uses seed `--seed + i`.
+    #[arg(long, default_value_t = 10)]
+    pub calls: u32,
+    /// First seed.
+    #[arg(long, default_value_t = 0)]
+    pub seed: u64,
+    /// Diffusion sampler: `ddpm` or `ddim:STEPS`.
+    #[arg(long, default_value = crate::episode::DEFAULT_SAMPLER)]
+    pub sampler: String,
+    /// Wall-clock budget of each call in seconds (the paper's: 300).
+    #[arg(long, default_value_t = 300.0)]
+    pub time_budget_s: f64,
+    /// Models directory (default: the shipped models).
+    #[arg(long)]
+    pub models: Option<std::path::PathBuf>,
+    /// Engine that runs the models.
+    #[arg(long, value_enum, default_value_t = EngineArg::Kernel)]
+    pub engine: EngineArg,
+    /// Print JSON (the only output format; accepted for the CLI contract).
+    #[arg(long)]
+    pub json: bool,
+}
+
+fn quantile(sorted: &[f64], q: f64) -> f64 {
+    let pos = q * (sorted.len() - 1) as f64;
+    let i = pos.floor() as usize;
+    let next = sorted[(i + 1).min(sorted.len() - 1)];
+    sorted[i] + (pos - pos.floor()) * (next - sorted[i])
+}
+
+/// Run the benchmark.
+pub fn run(args: &PlanBenchArgs) -> anyhow::Result<()> {
+    let scene = SceneKind::from_name(&args.task).with_context(|| {
+        format!(
+            "unknown task `{}` (expected screwdriver or card)",
+            args.task
+        )
+    })?;
+    if args.calls == 0 {
+        anyhow::bail!("--calls must be at least 1");
+    }
+    if !(args.time_budget_s.is_finite() && args.time_budget_s >= 0.0) {
+        anyhow::bail!("--time-budget-s must be a finite number of seconds ≥ 0");
+    }
+    let task = scene.task();
+    let sampler = parse_sampler(&args.sampler)?;
+    let dir = models_dir(args.models.as_deref(), task)?;
+    let models = Models::load(args.engine.into(), &dir, task)?;
+    let prior = models.prior;
+    let mut session = PaperSession::new(models);
+    let start: Vec<f32> = contract_state(&World::new(scene).state())
+        .into_iter()
+        .map(|v| v as f32)
+        .collect();
+    let goal = PlanSpec::paper_goal(task, &start).ok_or_else(|| anyhow!("state too short"))?;
+    let mut calls = Vec::new();
+    let mut seconds = Vec::new();
+    for i in 0..args.calls {
+        let config = SearchConfig {
+            seed: args.seed + u64::from(i),
+            time_budget_ms: (args.time_budget_s * 1e3).round().min(f64::from(u32::MAX)) as u32,
+            ..SearchConfig::for_task(task)
+        };
+        let mut spec = PlanSpec::new(task, &start, goal).map_err(|e| anyhow!("{e}"))?;
+        spec.search = config;
+        spec.sampler = sampler;
+        if let Some(p) = prior {
+            spec.prior = p;
+        }
+        spec.check().map_err(|e| anyhow!("{e}"))?;
+        let t0 = Instant::now();
+        let report = session.plan(&spec, &mut StdClock(t0))?;
+        let s = t0.elapsed().as_secs_f64();
+        eprintln!(
+            "call {}/{}: {s:.2} s, {} expansions, {:?}",
+            i + 1,
+            args.calls,
+            report.stats.nodes_expanded,
+            report.status
+        );
+        seconds.push(s);
+        calls.push(json!({
+            "seed": config.seed,
+            "seconds": s,
+            "nodes_expanded": report.stats.nodes_expanded,
+            "status": format!("{:?}", report.status),
+            "modes": report.modes.iter().map(|m| task.mode_name(*m).unwrap_or("?")).collect::<Vec<_>>(),
+        }));
+    }
+    let mut sorted = seconds.clone();
+    sorted.sort_by(f64::total_cmp);
+    let out = json!({
+        "bench": "plan",
+        "task": task.name(),
+        "models": dir.display().to_string(),
+        "engine": format!("{:?}", args.engine).to_lowercase(),
+        "sampler": args.sampler,
+        "start": "the task's start state",
+        "threads": 1,
+        "calls": calls,
+        "seconds": {
+            "median": quantile(&sorted, 0.5),
+            "p90": quantile(&sorted, 0.9),
+            "max": sorted[sorted.len() - 1],
+            "mean": seconds.iter().sum::<f64>() / seconds.len() as f64,
+        },
+    });
+    println!("{}", serde_json::to_string_pretty(&out)?);
+    Ok(())
+}
