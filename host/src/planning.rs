@@ -38,21 +38,38 @@ impl Clock for StdClock {
 }
 
 /// Parse a sampler name: `ddpm` (the paper's ancestral DDPM over every training step) or
-/// `ddim:STEPS` (deterministic DDIM, STEPS ≥ 1).
+/// `ddim:STEPS[:ETA]` (DDIM over STEPS ≥ 1 strided steps; η = 0, the default, is
+/// deterministic, η = 1 is ancestral).
 pub fn parse_sampler(spec: &str) -> anyhow::Result<SamplerConfig> {
     if spec == "ddpm" {
         return Ok(SamplerConfig::default());
     }
-    let steps = spec
-        .strip_prefix("ddim:")
-        .and_then(|n| n.parse::<u16>().ok())
+    let bad = || {
+        anyhow::anyhow!(
+            "--sampler {spec:?}: expected `ddpm` or `ddim:STEPS[:ETA]` (1 ≤ STEPS ≤ 65535, \
+             0 ≤ ETA ≤ 1)"
+        )
+    };
+    let rest = spec.strip_prefix("ddim:").ok_or_else(bad)?;
+    let (steps, eta) = match rest.split_once(':') {
+        Some((s, e)) => (s, Some(e)),
+        None => (rest, None),
+    };
+    let steps = steps
+        .parse::<u16>()
+        .ok()
         .filter(|&n| n > 0)
-        .ok_or_else(|| {
-            anyhow::anyhow!(
-                "--sampler {spec:?}: expected `ddpm` or `ddim:STEPS` (1 ≤ STEPS ≤ 65535)"
-            )
-        })?;
-    Ok(SamplerConfig::ddim(steps))
+        .ok_or_else(bad)?;
+    let mut config = SamplerConfig::ddim(steps);
+    if let Some(e) = eta {
+        let eta = e
+            .parse::<f32>()
+            .ok()
+            .filter(|v| (0.0..=1.0).contains(v))
+            .ok_or_else(bad)?;
+        config.method = dips_kernel::diffusion::SamplingMethod::Ddim { steps, eta };
+    }
+    Ok(config)
 }
 
 /// The file name of a model role in a models directory.

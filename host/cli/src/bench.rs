@@ -307,7 +307,7 @@ fn measure(a: &SearchBenchArgs, spec: &PlanSpec) -> anyhow::Result<()> {
             "size_of_bytes": std::mem::size_of::<PaperPlanner>(),
         },
     });
-    println!("{}", serde_json::to_string_pretty(&out)?);
+    crate::output::line(&serde_json::to_string_pretty(&out)?)?;
     Ok(())
 }
 

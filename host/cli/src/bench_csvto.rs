@@ -111,6 +111,6 @@ pub fn run(args: CsvtoBenchArgs) -> anyhow::Result<()> {
         "warmup_iterations": settings.warmup_iters,
         "best_max_eq_violation": violation,
     });
-    println!("{}", serde_json::to_string_pretty(&out)?);
+    crate::output::line(&serde_json::to_string_pretty(&out)?)?;
     Ok(())
 }

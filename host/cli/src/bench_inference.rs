@@ -86,7 +86,7 @@ pub fn run(a: &InferenceArgs) -> anyhow::Result<()> {
         .zip(&kernel_out)
         .map(|(x, y)| (x - y).abs())
         .fold(0.0f32, f32::max);
-    println!(
+    crate::output::line(&format!(
         "{}",
         serde_json::json!({
             "bench": "inference",
@@ -102,6 +102,6 @@ pub fn run(a: &InferenceArgs) -> anyhow::Result<()> {
             "kernel_over_tract": kernel_s / tract_s,
             "max_abs_diff": max_abs_diff,
         })
-    );
+    ))?;
     Ok(())
 }

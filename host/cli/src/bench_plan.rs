@@ -132,6 +132,6 @@ pub fn run(args: &PlanBenchArgs) -> anyhow::Result<()> {
             "mean": seconds.iter().sum::<f64>() / seconds.len() as f64,
         },
     });
-    println!("{}", serde_json::to_string_pretty(&out)?);
+    crate::output::line(&serde_json::to_string_pretty(&out)?)?;
     Ok(())
 }

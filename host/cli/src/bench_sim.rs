@@ -40,6 +40,6 @@ pub fn main(args: BenchSimArgs) -> anyhow::Result<()> {
     } else {
         serde_json::to_string_pretty(&report)?
     };
-    println!("{text}");
+    crate::output::line(&text)?;
     Ok(())
 }

@@ -62,7 +62,7 @@ fn parse_task(name: &str) -> anyhow::Result<SceneKind> {
 pub fn run(args: DatagenArgs) -> anyhow::Result<()> {
     if let Some(DatagenCommand::Index { task, data }) = &args.command {
         let manifest = index(data, parse_task(task)?)?;
-        println!("{}", serde_json::to_string_pretty(&manifest)?);
+        crate::output::line(&serde_json::to_string_pretty(&manifest)?)?;
         return Ok(());
     }
     let task = parse_task(args.task.as_deref().context("--task is required")?)?;
@@ -81,6 +81,6 @@ pub fn run(args: DatagenArgs) -> anyhow::Result<()> {
     settings.shard = args.shard;
     settings.progress = !args.quiet;
     let report = generate(&settings, &out)?;
-    println!("{}", serde_json::to_string_pretty(&report)?);
+    crate::output::line(&serde_json::to_string_pretty(&report)?)?;
     Ok(())
 }

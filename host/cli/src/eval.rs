@@ -69,7 +69,7 @@ pub struct EvalArgs {
 pub fn run(args: EvalArgs) -> anyhow::Result<()> {
     if args.summarize_only {
         let s = summarize(&args.out)?;
-        print!("{}", dips_eval::summary::markdown(&s));
+        crate::output::line(dips_eval::summary::markdown(&s).trim_end_matches('\n'))?;
         return Ok(());
     }
     let task = SceneKind::from_name(&args.task).with_context(|| {
@@ -117,7 +117,7 @@ pub fn run(args: EvalArgs) -> anyhow::Result<()> {
         report.seconds
     );
     let s = summarize(&args.out)?;
-    print!("{}", dips_eval::summary::markdown(&s));
+    crate::output::line(dips_eval::summary::markdown(&s).trim_end_matches('\n'))?;
     eprintln!("wrote {}", args.out.join("results.json").display());
     Ok(())
 }

@@ -12,6 +12,7 @@ pub mod episode;
 pub mod eval;
 pub mod model;
 pub mod model_quality;
+pub mod output;
 pub mod plan;
 pub mod sim;
 pub mod train;

@@ -99,7 +99,7 @@ pub fn run(args: ModelArgs) -> anyhow::Result<()> {
                     "blob_bytes": lowered.blob.len(),
                 },
             });
-            println!("{}", serde_json::to_string_pretty(&summary)?);
+            crate::output::line(&serde_json::to_string_pretty(&summary)?)?;
         }
         ModelCommand::Run {
             file,
@@ -131,10 +131,10 @@ pub fn run(args: ModelArgs) -> anyhow::Result<()> {
             }
             let l = lower_file(&file, &Expectation::default())?;
             l.write(&out)?;
-            println!(
+            crate::output::line(&format!(
                 "{}",
                 serde_json::json!({"out": out.display().to_string(), "bytes": l.blob.len(), "ops": l.n_ops, "weights": l.n_weights})
-            );
+            ))?;
         }
     }
     Ok(())

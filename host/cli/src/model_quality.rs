@@ -101,7 +101,7 @@ pub fn run_quality(args: QualityArgs) -> anyhow::Result<()> {
     let path = dir.join(QUALITY_FILE);
     write_atomic(&path, serde_json::to_string_pretty(&q)?.as_bytes())
         .with_context(|| format!("cannot write {}", path.display()))?;
-    println!("{}", markdown(&q));
+    crate::output::line(&markdown(&q))?;
     Ok(())
 }
 
@@ -121,7 +121,7 @@ pub fn run_card(args: CardArgs) -> anyhow::Result<()> {
     let path = dir.join(CARD_FILE);
     write_atomic(&path, card.as_bytes())
         .with_context(|| format!("cannot write {}", path.display()))?;
-    println!("{}", path.display());
+    crate::output::line(&path.display().to_string())?;
     Ok(())
 }
 

@@ -186,7 +186,7 @@ pub fn run(args: PlanArgs) -> anyhow::Result<()> {
         },
         "planning_s": planning_s,
     });
-    println!("{}", serde_json::to_string_pretty(&out)?);
+    crate::output::line(&serde_json::to_string_pretty(&out)?)?;
     Ok(())
 }
 

@@ -338,7 +338,7 @@ fn run(args: &RunArgs) -> Result<(), SimCliError> {
         return Err(SimCliError::Action { action, source });
     }
     let last = traj.states.last().cloned().unwrap_or_default();
-    println!(
+    crate::output::line(&format!(
         "{}",
         serde_json::json!({
             "scene": scene.name(),
@@ -347,7 +347,7 @@ fn run(args: &RunArgs) -> Result<(), SimCliError> {
             "valid": traj.valid.last(),
             "metric": traj.metric.last(),
         })
-    );
+    ))?;
     Ok(())
 }
 

@@ -82,6 +82,6 @@ pub fn run(args: TrainArgs) -> anyhow::Result<()> {
         fresh: args.fresh,
     };
     let report = dips_train::run(task, &args.data, &args.out, &settings, &opts)?;
-    println!("{}", serde_json::to_string_pretty(&report)?);
+    crate::output::line(&serde_json::to_string_pretty(&report)?)?;
     Ok(())
 }
