@@ -42,6 +42,50 @@ fn font_ready() -> Result<(), PlotError> {
     }
 }
 
+/// Tukey's box: quartiles (linear interpolation) and whiskers at the furthest values within
+/// 1.5 IQR of the box.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct BoxStats {
+    low: f64,
+    q1: f64,
+    median: f64,
+    q3: f64,
+    high: f64,
+}
+
+impl BoxStats {
+    fn of(values: &[f64]) -> Self {
+        let mut v = values.to_vec();
+        v.sort_by(f64::total_cmp);
+        let q = |p: f64| {
+            let pos = p * (v.len() - 1) as f64;
+            let i = pos.floor() as usize;
+            let next = v[(i + 1).min(v.len() - 1)];
+            v[i] + (pos - pos.floor()) * (next - v[i])
+        };
+        let (q1, median, q3) = (q(0.25), q(0.5), q(0.75));
+        let iqr = q3 - q1;
+        let low = v
+            .iter()
+            .copied()
+            .find(|&x| x >= q1 - 1.5 * iqr)
+            .unwrap_or(q1);
+        let high = v
+            .iter()
+            .rev()
+            .copied()
+            .find(|&x| x <= q3 + 1.5 * iqr)
+            .unwrap_or(q3);
+        Self {
+            low,
+            q1,
+            median,
+            q3,
+            high,
+        }
+    }
+}
+
 /// One box of a box plot: a label and its values (one per trial).
 #[derive(Debug, Clone, PartialEq)]
 pub struct BoxSeries {
@@ -95,17 +139,29 @@ impl BoxPlot {
         }
         let (lo, hi) = self.value_range()?;
         root.fill(&WHITE).map_err(draw_err)?;
+        let n = self.series.len();
         let labels: Vec<&str> = self.series.iter().map(|s| s.label.as_str()).collect();
+        let x_range = -0.5f32..n as f32 - 0.5;
         let mut chart = ChartBuilder::on(&root)
             .caption(&self.title, ("sans-serif", 22))
             .margin(16)
             .x_label_area_size(48)
             .y_label_area_size(72)
-            .build_cartesian_2d(labels[..].into_segmented(), lo..hi)
+            .build_cartesian_2d(x_range.clone(), lo..hi)
             .map_err(draw_err)?;
+        let name = |x: &f32| {
+            let i = x.round();
+            if (x - i).abs() < 1e-3 && i >= 0.0 && (i as usize) < n {
+                labels[i as usize].to_string()
+            } else {
+                String::new()
+            }
+        };
         chart
             .configure_mesh()
             .disable_x_mesh()
+            .x_labels(n)
+            .x_label_formatter(&name)
             .x_desc(&self.x_label)
             .y_desc(&self.y_label)
             .label_style(("sans-serif", 14))
@@ -122,41 +178,47 @@ impl BoxPlot {
             RGBColor(227, 119, 194),
             RGBColor(127, 127, 127),
         ];
-        for (i, (s, label)) in self.series.iter().zip(&labels).enumerate() {
+        for (i, s) in self.series.iter().enumerate() {
             let finite: Vec<f64> = s.values.iter().copied().filter(|v| v.is_finite()).collect();
             if finite.is_empty() {
                 continue;
             }
             let color = palette[i % palette.len()];
-            let q = Quartiles::new(&finite);
+            let style = color.stroke_width(2);
+            let b = BoxStats::of(&finite);
+            let x = i as f32;
+            let (w, cap) = (0.18f32, 0.09f32);
+            let y = |v: f64| v as f32;
             chart
-                .draw_series(std::iter::once(
-                    Boxplot::new_vertical(SegmentValue::CenterOf(label), &q)
-                        .width(28)
-                        .whisker_width(0.6)
-                        .style(color.stroke_width(2)),
-                ))
+                .draw_series([Rectangle::new([(x - w, y(b.q1)), (x + w, y(b.q3))], style)])
+                .map_err(draw_err)?;
+            chart
+                .draw_series([
+                    // The median, the whiskers to the furthest trial within 1.5 IQR, their caps.
+                    PathElement::new([(x - w, y(b.median)), (x + w, y(b.median))], style),
+                    PathElement::new([(x, y(b.q3)), (x, y(b.high))], color.stroke_width(1)),
+                    PathElement::new([(x, y(b.q1)), (x, y(b.low))], color.stroke_width(1)),
+                    PathElement::new([(x - cap, y(b.high)), (x + cap, y(b.high))], style),
+                    PathElement::new([(x - cap, y(b.low)), (x + cap, y(b.low))], style),
+                ])
                 .map_err(draw_err)?;
             // Trials as dots, spread across the box so equal values stay visible.
-            let n = finite.len();
+            let m = finite.len();
             chart
                 .draw_series(finite.iter().enumerate().map(|(j, &v)| {
-                    let dx = if n > 1 {
-                        (j as i32 * 20 / (n as i32 - 1)) - 10
+                    let dx = if m > 1 {
+                        (j as f32 / (m - 1) as f32 - 0.5) * 1.6 * w
                     } else {
-                        0
+                        0.0
                     };
-                    EmptyElement::at((SegmentValue::CenterOf(label), v as f32))
-                        + Circle::new((dx, 0), 3, color.mix(0.7).filled())
+                    Circle::new((x + dx, y(v)), 3, color.mix(0.7).filled())
                 }))
                 .map_err(draw_err)?;
         }
         if let Some((value, text)) = &self.reference {
-            let first = SegmentValue::Exact(&labels[0]);
-            let last = SegmentValue::Last;
             chart
                 .draw_series(DashedLineSeries::new(
-                    [(first, *value as f32), (last, *value as f32)],
+                    [(x_range.start, *value as f32), (x_range.end, *value as f32)],
                     8,
                     5,
                     BLACK.stroke_width(1),
@@ -263,6 +325,18 @@ mod tests {
         assert_eq!((info.width, info.height), (640, 400));
         let dark = buf.chunks(3).filter(|p| p.iter().all(|&c| c < 80)).count();
         assert!(dark > 500, "only {dark} dark pixels: no text or axes drawn");
+    }
+
+    #[test]
+    fn whiskers_stop_at_the_furthest_trial_within_the_fences() {
+        let b = BoxStats::of(&[1.0, 2.0, 3.0, 4.0, 100.0]);
+        assert_eq!((b.q1, b.median, b.q3), (2.0, 3.0, 4.0));
+        assert_eq!((b.low, b.high), (1.0, 4.0));
+        let one = BoxStats::of(&[5.0]);
+        assert_eq!(
+            (one.low, one.q1, one.median, one.q3, one.high),
+            (5.0, 5.0, 5.0, 5.0, 5.0)
+        );
     }
 
     #[test]
