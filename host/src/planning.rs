@@ -176,6 +176,22 @@ pub struct Models {
 }
 
 impl Models {
+    /// Check that `config` can run on the denoiser: DDIM cannot take more steps than the
+    /// model was trained with. The error names the models and the allowed range.
+    pub fn check_sampler(&self, config: &SamplerConfig) -> anyhow::Result<()> {
+        let n = DenoiserEngine::dims(&self.denoiser).diffusion_steps;
+        if let dips_kernel::diffusion::SamplingMethod::Ddim { steps, .. } = config.method
+            && usize::from(steps) > n
+        {
+            bail!(
+                "--sampler ddim:{steps}: the denoiser in {} was trained with {n} diffusion \
+                 steps; use ddim:S with 1 ≤ S ≤ {n}, or ddpm",
+                self.dir.display()
+            );
+        }
+        Ok(())
+    }
+
     /// Load `denoiser.onnx`, `discriminator.onnx` and, when present, `prior.json` from `dir`
     /// for `task` with `kind`.
     pub fn load(kind: EngineKind, dir: &Path, task: Task) -> anyhow::Result<Self> {

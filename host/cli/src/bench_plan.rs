@@ -73,6 +73,7 @@ pub fn run(args: &PlanBenchArgs) -> anyhow::Result<()> {
     let sampler = parse_sampler(&args.sampler)?;
     let dir = models_dir(args.models.as_deref(), task)?;
     let models = Models::load(args.engine.into(), &dir, task)?;
+    models.check_sampler(&sampler)?;
     let prior = models.prior;
     let mut session = PaperSession::new(models);
     let start: Vec<f32> = contract_state(&World::new(scene).state())

@@ -98,7 +98,9 @@ pub fn run(args: EpisodeArgs) -> anyhow::Result<()> {
         .with_context(|| format!("cannot create the output directory {}", args.out.display()))?;
     let models = if method.needs_models() {
         let dir = models_dir(args.models.as_deref(), task.task())?;
-        Some(Models::load(args.engine.into(), &dir, task.task())?)
+        let models = Models::load(args.engine.into(), &dir, task.task())?;
+        models.check_sampler(&dips_host::planning::parse_sampler(&args.sampler)?)?;
+        Some(models)
     } else {
         None
     };

@@ -136,6 +136,7 @@ pub fn run(args: PlanArgs) -> anyhow::Result<()> {
     };
     let dir = models_dir(args.models.as_deref(), task)?;
     let models = Models::load(kind, &dir, task)?;
+    models.check_sampler(&sampler)?;
     let prior_source = match models.prior {
         Some(prior) => {
             spec.prior = prior;

@@ -122,3 +122,15 @@ fn each_task_plans_with_its_own_search_settings() {
     assert_eq!(card["beta"].as_f64(), Some(0.0));
     assert_eq!(card["max_depth"].as_u64(), Some(5));
 }
+
+#[test]
+fn a_sampler_beyond_the_models_steps_is_refused() {
+    // The shipped card models are trained with 256 diffusion steps.
+    let err = plan(&["--task", "card", "--sampler", "ddim:1000", "--json"]).unwrap_err();
+    assert!(
+        err.contains("ddim:1000") && err.contains("256") && err.contains("1 ≤ S ≤ 256"),
+        "{err}"
+    );
+    let err = plan(&["--task", "card", "--sampler", "ddim:8:2"]).unwrap_err();
+    assert!(err.contains("0 ≤ ETA ≤ 1"), "{err}");
+}
