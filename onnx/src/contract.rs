@@ -245,8 +245,9 @@ impl Expectation {
 /// Read and decode an `.onnx` file.
 pub fn read_proto(path: &Path) -> Result<pb::ModelProto> {
     let bytes = std::fs::read(path).map_err(|source| ModelError::Io {
+        action: "read model file",
         path: path.to_path_buf(),
-        source,
+        cause: source,
     })?;
     decode_proto(&bytes)
 }

@@ -5,13 +5,15 @@ use std::path::PathBuf;
 /// Everything that can go wrong loading, validating, lowering or running a model.
 #[derive(Debug, thiserror::Error)]
 pub enum ModelError {
-    /// The file could not be read.
-    #[error("cannot read model file {path}: {source}")]
+    /// A file could not be read or written.
+    #[error("cannot {action} {path}: {cause}")]
     Io {
+        /// What was being done, e.g. `read model file`, `write tensor file`.
+        action: &'static str,
         /// The file.
         path: PathBuf,
         /// The I/O error.
-        source: std::io::Error,
+        cause: std::io::Error,
     },
     /// The bytes are not a valid ONNX protobuf (truncated or corrupt file).
     #[error("not a valid ONNX model (corrupt or truncated protobuf): {0}")]

@@ -33,8 +33,9 @@ impl TensorFile {
     /// Read a file.
     pub fn read(path: &Path) -> Result<Self> {
         let text = std::fs::read_to_string(path).map_err(|source| ModelError::Io {
+            action: "read tensor file",
             path: path.to_path_buf(),
-            source,
+            cause: source,
         })?;
         let f: TensorFile = serde_json::from_str(&text)
             .map_err(|e| ModelError::Json(format!("{}: {e}", path.display())))?;
@@ -55,8 +56,9 @@ impl TensorFile {
         let text = serde_json::to_string(self).map_err(|e| ModelError::Json(e.to_string()))?;
         let tmp = path.with_extension("json.tmp");
         let io = |source| ModelError::Io {
+            action: "write tensor file",
             path: path.to_path_buf(),
-            source,
+            cause: source,
         };
         std::fs::write(&tmp, text).map_err(io)?;
         std::fs::rename(&tmp, path).map_err(io)

@@ -45,8 +45,9 @@ impl KernelHostEngine {
     /// Load a `.dipsm` blob (validated against `expected`).
     pub fn load_blob(path: &Path, expected: &Expectation) -> Result<Self> {
         let blob = std::fs::read(path).map_err(|source| ModelError::Io {
+            action: "read kernel blob",
             path: path.to_path_buf(),
-            source,
+            cause: source,
         })?;
         let contract = Contract::from_blob(&blob)?;
         contract.expect(expected)?;

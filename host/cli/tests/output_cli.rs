@@ -54,3 +54,34 @@ fn user_errors_print_no_backtrace() {
     assert!(err.starts_with("error: unknown task `pen`"), "{err}");
     assert!(!err.to_lowercase().contains("backtrace"), "{err}");
 }
+
+#[test]
+fn file_errors_name_the_file_and_what_was_done() {
+    let run = |args: &[&str]| {
+        let out = Command::new(env!("CARGO_BIN_EXE_dips"))
+            .args(args)
+            .output()
+            .unwrap();
+        assert_eq!(out.status.code(), Some(1));
+        String::from_utf8_lossy(&out.stderr).into_owned()
+    };
+    let model = fixture();
+    let err = run(&[
+        "model",
+        "run",
+        &model,
+        "--input",
+        "/nonexistent/in.json",
+        "--output",
+        "/tmp/x.json",
+    ]);
+    assert!(
+        err.contains("cannot read tensor file /nonexistent/in.json"),
+        "{err}"
+    );
+    let err = run(&["model", "lower", &model, "--out", "/nonexistent/x.dipsm"]);
+    assert!(
+        err.contains("cannot write kernel blob /nonexistent/x.dipsm"),
+        "{err}"
+    );
+}

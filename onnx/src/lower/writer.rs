@@ -38,8 +38,9 @@ impl LoweredModel {
     pub fn write(&self, path: &Path) -> Result<()> {
         let tmp = path.with_extension("dipsm.tmp");
         let io = |source| ModelError::Io {
+            action: "write kernel blob",
             path: path.to_path_buf(),
-            source,
+            cause: source,
         };
         std::fs::write(&tmp, &self.blob).map_err(io)?;
         std::fs::rename(&tmp, path).map_err(io)
