@@ -238,7 +238,10 @@ pub struct Session<
 }
 
 /// The session with the paper's capacities.
-pub type PaperSession = Session<16, 512, 256, 481>;
+pub type PaperSession = Session<PAPER_K, 512, 256, 481>;
+
+/// Particles per node of [`PaperSession`] (the paper's k = 16).
+pub const PAPER_K: usize = 16;
 
 const _: () = assert!(
     std::mem::size_of::<PaperSession>() > 0

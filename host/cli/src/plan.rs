@@ -91,11 +91,12 @@ pub fn search_config(task: Task, args: &PlanArgs) -> anyhow::Result<SearchConfig
     };
     config
         .validate()
-        .map_err(|field| anyhow!("invalid search setting: {field:?}"))?;
-    if usize::from(config.k) > 16 {
+        .map_err(|field| anyhow!("{field} (--k, --depth)"))?;
+    if usize::from(config.k) > dips_host::planning::PAPER_K {
         bail!(
-            "--k {} exceeds the planner's 16 particles per node",
-            config.k
+            "--k {}: this planner holds at most {} particles per node",
+            config.k,
+            dips_host::planning::PAPER_K
         );
     }
     Ok(config)

@@ -134,3 +134,11 @@ fn a_sampler_beyond_the_models_steps_is_refused() {
     let err = plan(&["--task", "card", "--sampler", "ddim:8:2"]).unwrap_err();
     assert!(err.contains("0 ≤ ETA ≤ 1"), "{err}");
 }
+
+#[test]
+fn search_settings_out_of_range_name_the_limit() {
+    let err = plan(&["--task", "card", "--depth", "17"]).unwrap_err();
+    assert!(err.contains("max_depth must be in 1..=16"), "{err}");
+    let err = plan(&["--task", "card", "--k", "17"]).unwrap_err();
+    assert!(err.contains("at most 16 particles"), "{err}");
+}
