@@ -9,6 +9,7 @@ use std::time::Instant;
 
 use anyhow::{Context, anyhow};
 use clap::Args;
+use dips_eval::summary::Stats;
 use dips_host::planning::{Models, PaperSession, StdClock, models_dir, parse_sampler};
 use dips_host::problems::contract::contract_state;
 use dips_host::scenes::SceneKind;
@@ -46,13 +47,6 @@ pub struct PlanBenchArgs {
     /// Print JSON (the only output format; accepted for the CLI contract).
     #[arg(long)]
     pub json: bool,
-}
-
-fn quantile(sorted: &[f64], q: f64) -> f64 {
-    let pos = q * (sorted.len() - 1) as f64;
-    let i = pos.floor() as usize;
-    let next = sorted[(i + 1).min(sorted.len() - 1)];
-    sorted[i] + (pos - pos.floor()) * (next - sorted[i])
 }
 
 /// Run the benchmark.
@@ -115,8 +109,7 @@ pub fn run(args: &PlanBenchArgs) -> anyhow::Result<()> {
             "modes": report.modes.iter().map(|m| task.mode_name(*m).unwrap_or("?")).collect::<Vec<_>>(),
         }));
     }
-    let mut sorted = seconds.clone();
-    sorted.sort_by(f64::total_cmp);
+    let stats = Stats::of(&seconds).ok_or_else(|| anyhow!("no finite call time"))?;
     let out = json!({
         "bench": "plan",
         "task": task.name(),
@@ -127,10 +120,10 @@ pub fn run(args: &PlanBenchArgs) -> anyhow::Result<()> {
         "threads": 1,
         "calls": calls,
         "seconds": {
-            "median": quantile(&sorted, 0.5),
-            "p90": quantile(&sorted, 0.9),
-            "max": sorted[sorted.len() - 1],
-            "mean": seconds.iter().sum::<f64>() / seconds.len() as f64,
+            "median": stats.median,
+            "p90": stats.p90,
+            "max": stats.max,
+            "mean": stats.mean,
         },
     });
     crate::output::line(&serde_json::to_string_pretty(&out)?)?;
