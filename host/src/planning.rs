@@ -72,6 +72,12 @@ pub fn parse_sampler(spec: &str) -> anyhow::Result<SamplerConfig> {
     Ok(config)
 }
 
+/// The threads a model call uses when no `--threads` is given: every core this process may
+/// use.
+pub fn default_threads() -> usize {
+    std::thread::available_parallelism().map_or(1, |n| n.get())
+}
+
 /// The file name of a model role in a models directory.
 pub fn model_file(role: Role) -> &'static str {
     match role {
@@ -190,6 +196,13 @@ impl Models {
             );
         }
         Ok(())
+    }
+
+    /// Let every model call use up to `threads` threads ([`AnyEngine::set_threads`]: the
+    /// kernel engine splits its batch, with the same bits as one thread; tract ignores it).
+    pub fn set_threads(&mut self, threads: usize) {
+        self.denoiser.set_threads(threads);
+        self.discriminator.set_threads(threads);
     }
 
     /// Load `denoiser.onnx`, `discriminator.onnx` and, when present, `prior.json` from `dir`

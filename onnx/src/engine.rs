@@ -124,6 +124,15 @@ impl AnyEngine {
         }
     }
 
+    /// Let each call use up to `threads` threads. The kernel engine splits a call's batch
+    /// (the same bits as one thread, [`KernelHostEngine`]); tract runs on the calling thread
+    /// and ignores it.
+    pub fn set_threads(&mut self, threads: usize) {
+        if let AnyEngine::Kernel(e) = self {
+            e.set_threads(threads);
+        }
+    }
+
     /// Run on contract inputs in contract order.
     pub fn run(&mut self, batch: usize, inputs: &[&[f32]], output: &mut [f32]) -> Result<()> {
         match self {

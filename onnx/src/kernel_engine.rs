@@ -28,13 +28,24 @@ fn memory(info: &ModelInfo, batch: usize) -> Result<Vec<f32>> {
 }
 
 /// A contract-v1 model run by the kernel interpreter.
+///
+/// With [`KernelHostEngine::set_threads`] above 1, a call's batch is split into that many
+/// contiguous parts run side by side, each in its own memory. Every sample is computed by the
+/// same instructions whatever its batch, so the outputs are the same bits as one thread's
+/// (tested).
 #[derive(Debug)]
 pub struct KernelHostEngine {
     contract: Contract,
     blob: Vec<u8>,
     info: ModelInfo,
-    mem: Vec<f32>,
+    /// One memory per thread (the first is the single-thread one).
+    mems: Vec<Vec<f32>>,
+    threads: usize,
 }
+
+/// The smallest number of samples a thread is given: below it, a thread's start costs more
+/// than it saves.
+const MIN_SAMPLES_PER_THREAD: usize = 4;
 
 impl KernelHostEngine {
     /// Lower an `.onnx` file (validated against `expected`) and load the blob.
@@ -82,8 +93,19 @@ impl KernelHostEngine {
             contract,
             blob,
             info,
-            mem,
+            mems: vec![mem],
+            threads: 1,
         })
+    }
+
+    /// Run each call on up to `threads` threads (at least 1; the default is 1).
+    pub fn set_threads(&mut self, threads: usize) {
+        self.threads = threads.max(1);
+    }
+
+    /// Threads a call may use.
+    pub fn threads(&self) -> usize {
+        self.threads
     }
 
     /// The model's contract.
@@ -99,12 +121,56 @@ impl KernelHostEngine {
     /// Run on contract inputs in contract order.
     pub fn run(&mut self, batch: usize, inputs: &[&[f32]], output: &mut [f32]) -> Result<()> {
         check_call(&self.contract, batch, inputs, output)?;
-        if batch > self.info.max_batch(self.mem.len()) {
-            self.mem = memory(&self.info, batch)?;
-            install(&self.info, &self.blob, &mut self.mem)?;
+        let parts = self.threads.min(batch / MIN_SAMPLES_PER_THREAD).max(1);
+        let per = batch.div_ceil(parts);
+        while self.mems.len() < parts {
+            self.mems.push(Vec::new());
         }
-        run(&self.info, &self.blob, &mut self.mem, batch, inputs, output)?;
-        Ok(())
+        for mem in &mut self.mems[..parts] {
+            if per > self.info.max_batch(mem.len()) {
+                *mem = memory(&self.info, per)?;
+                install(&self.info, &self.blob, mem)?;
+            }
+        }
+        if parts == 1 {
+            run(
+                &self.info,
+                &self.blob,
+                &mut self.mems[0],
+                batch,
+                inputs,
+                output,
+            )?;
+            return Ok(());
+        }
+        // Contiguous parts of `per` samples (the last one shorter); every input and the
+        // output are `batch` equal rows.
+        let (info, blob) = (&self.info, &self.blob[..]);
+        let out_row = output.len() / batch;
+        std::thread::scope(|scope| {
+            let mut handles = Vec::with_capacity(parts);
+            let mut out_rest = &mut output[..];
+            for (p, mem) in self.mems[..parts].iter_mut().enumerate() {
+                let lo = p * per;
+                let n = per.min(batch - lo);
+                let (out, rest) = out_rest.split_at_mut(n * out_row);
+                out_rest = rest;
+                let part: Vec<&[f32]> = inputs
+                    .iter()
+                    .map(|x| {
+                        let row = x.len() / batch;
+                        &x[lo * row..(lo + n) * row]
+                    })
+                    .collect();
+                handles.push(scope.spawn(move || run(info, blob, mem, n, &part, out)));
+            }
+            handles.into_iter().try_for_each(|h| match h.join() {
+                Ok(r) => r.map_err(ModelError::from),
+                Err(_) => Err(ModelError::Mismatch(
+                    "a kernel-engine thread panicked".into(),
+                )),
+            })
+        })
     }
 }
 

@@ -119,3 +119,32 @@ fn wrong_task_or_role_is_refused_with_the_mismatch_named() {
         "{err}"
     );
 }
+
+#[test]
+fn a_batch_split_over_threads_gives_the_same_bits() {
+    for dir in ["torch-card-dynamo", "torch-screwdriver-legacy"] {
+        for role in ["denoiser", "discriminator"] {
+            let path = fixture(dir, &format!("{role}.onnx"));
+            let mut e = KernelHostEngine::load_onnx(&path, &Expectation::default()).unwrap();
+            let f = io(dir, role);
+            // Enough samples for three threads, and a batch that does not divide evenly.
+            let (batch, ins, want) = tiled(e.contract(), &f, 7);
+            assert!(batch >= 12, "batch {batch}");
+            let refs: Vec<&[f32]> = ins.iter().map(Vec::as_slice).collect();
+            let mut one = vec![0.0; want.len()];
+            e.run(batch, &refs, &mut one).unwrap();
+            assert_agree(&one, &want, &format!("{dir} {role}, one thread"));
+            for threads in [2, 3, 64] {
+                e.set_threads(threads);
+                let mut many = vec![f32::NAN; want.len()];
+                e.run(batch, &refs, &mut many).unwrap();
+                assert!(
+                    one.iter()
+                        .zip(&many)
+                        .all(|(a, b)| a.to_bits() == b.to_bits()),
+                    "{dir} {role}: {threads} threads differ from one"
+                );
+            }
+        }
+    }
+}

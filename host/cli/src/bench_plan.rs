@@ -47,6 +47,10 @@ pub struct PlanBenchArgs {
     /// Print JSON (the only output format; accepted for the CLI contract).
     #[arg(long)]
     pub json: bool,
+    /// Threads of each model call (default: every core). The plan does not depend on it, only
+    /// how many expansions fit a time budget.
+    #[arg(long)]
+    pub threads: Option<usize>,
 }
 
 /// Run the benchmark.
@@ -66,7 +70,8 @@ pub fn run(args: &PlanBenchArgs) -> anyhow::Result<()> {
     let task = scene.task();
     let sampler = parse_sampler(&args.sampler)?;
     let dir = models_dir(args.models.as_deref(), task)?;
-    let models = Models::load(args.engine.into(), &dir, task)?;
+    let mut models = Models::load(args.engine.into(), &dir, task)?;
+    models.set_threads(crate::model::threads(args.threads)?);
     models.check_sampler(&sampler)?;
     let prior = models.prior;
     let mut session = PaperSession::new(models);

@@ -58,6 +58,10 @@ pub struct EpisodeArgs {
     /// Stop after this many modes (default: the task's 7 / 5; the search depth stays).
     #[arg(long)]
     pub max_modes: Option<usize>,
+    /// Threads of each model call (default: every core). The plan does not depend on it, only
+    /// how many expansions fit a time budget.
+    #[arg(long)]
+    pub threads: Option<usize>,
     /// Output directory; `result.json` is written there.
     #[arg(long)]
     pub out: PathBuf,
@@ -98,7 +102,8 @@ pub fn run(args: EpisodeArgs) -> anyhow::Result<()> {
         .with_context(|| format!("cannot create the output directory {}", args.out.display()))?;
     let models = if method.needs_models() {
         let dir = models_dir(args.models.as_deref(), task.task())?;
-        let models = Models::load(args.engine.into(), &dir, task.task())?;
+        let mut models = Models::load(args.engine.into(), &dir, task.task())?;
+        models.set_threads(crate::model::threads(args.threads)?);
         models.check_sampler(&dips_host::planning::parse_sampler(&args.sampler)?)?;
         Some(models)
     } else {

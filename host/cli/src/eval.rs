@@ -36,6 +36,10 @@ pub struct EvalArgs {
     /// Episodes run at once (default: the number of cores).
     #[arg(long)]
     pub jobs: Option<usize>,
+    /// Threads of each model call inside an episode (default: the cores divided by
+    /// `--jobs`, at least 1).
+    #[arg(long)]
+    pub model_threads: Option<usize>,
     /// Run only shard I of N (method × trial, in order), e.g. `--shard 0/4`.
     #[arg(long, default_value = "0/1")]
     pub shard: Shard,
@@ -85,15 +89,21 @@ pub fn run(args: EvalArgs) -> anyhow::Result<()> {
             .collect::<anyhow::Result<Vec<_>>>()?,
         None => Method::ALL.to_vec(),
     };
+    let cores = dips_host::planning::default_threads();
+    let jobs = args.jobs.unwrap_or(cores);
+    let model_threads = match args.model_threads {
+        Some(0) => anyhow::bail!("--model-threads must be at least 1"),
+        Some(n) => n,
+        None => (cores / jobs.max(1)).max(1),
+    };
     let settings = EvalSettings {
         task,
         methods,
         trials: args.trials,
         first_seed: args.first_seed,
         shard: args.shard,
-        jobs: args
-            .jobs
-            .unwrap_or_else(|| std::thread::available_parallelism().map_or(2, |n| n.get())),
+        jobs,
+        model_threads,
         sampler: args.sampler.clone(),
         online: OnlineSettings {
             time_budget_s: args.time_budget_s,

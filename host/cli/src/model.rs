@@ -70,6 +70,15 @@ impl From<EngineArg> for EngineKind {
     }
 }
 
+/// The threads of a model call from `--threads` (default: every core); 0 is refused.
+pub fn threads(given: Option<usize>) -> anyhow::Result<usize> {
+    match given {
+        Some(0) => anyhow::bail!("--threads must be at least 1"),
+        Some(n) => Ok(n),
+        None => Ok(dips_host::planning::default_threads()),
+    }
+}
+
 /// Run `dips model`.
 pub fn run(args: ModelArgs) -> anyhow::Result<()> {
     match args.command {

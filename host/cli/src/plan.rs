@@ -71,6 +71,10 @@ pub struct PlanArgs {
     /// Print JSON (the only output format).
     #[arg(long)]
     pub json: bool,
+    /// Threads of each model call (default: every core). The plan does not depend on it, only
+    /// how many expansions fit a time budget.
+    #[arg(long)]
+    pub threads: Option<usize>,
 }
 
 /// The search settings of `dips plan`: the task's own ([`SearchConfig::for_task`]: the
@@ -136,7 +140,8 @@ pub fn run(args: PlanArgs) -> anyhow::Result<()> {
         PlanEngine::Tract => EngineKind::Tract,
     };
     let dir = models_dir(args.models.as_deref(), task)?;
-    let models = Models::load(kind, &dir, task)?;
+    let mut models = Models::load(kind, &dir, task)?;
+    models.set_threads(crate::model::threads(args.threads)?);
     models.check_sampler(&sampler)?;
     let prior_source = match models.prior {
         Some(prior) => {

@@ -25,10 +25,18 @@ pub struct EpisodeWall {
     pub seconds: f64,
     /// Episodes that ran at once.
     pub jobs: usize,
+    /// Threads of each model call.
+    #[serde(default = "one")]
+    pub model_threads: usize,
     /// Why the episode stopped without a result (the world or the optimiser failed); such an
     /// episode counts as a failed trial and is not run again.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub error: Option<String>,
+}
+
+/// `wall.json` files written before `model_threads` was recorded ran on one thread.
+fn one() -> usize {
+    1
 }
 
 /// The file of an episode's wall time.
@@ -74,11 +82,9 @@ fn run_episode(
     let mut log = Vec::new();
     let outcome = (|| {
         let models = if method.needs_models() {
-            Some(Models::load(
-                settings.engine,
-                &settings.models,
-                settings.task.task(),
-            )?)
+            let mut m = Models::load(settings.engine, &settings.models, settings.task.task())?;
+            m.set_threads(settings.model_threads);
+            Some(m)
         } else {
             None
         };
@@ -111,6 +117,7 @@ fn run_episode(
     let wall = EpisodeWall {
         seconds: t0.elapsed().as_secs_f64(),
         jobs: settings.jobs,
+        model_threads: settings.model_threads,
         error: error.clone(),
     };
     write_atomic(

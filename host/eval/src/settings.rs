@@ -45,6 +45,8 @@ pub struct EvalSettings {
     pub shard: Shard,
     /// Episodes run at once.
     pub jobs: usize,
+    /// Threads of each model call inside an episode ([`dips_host::planning::Models::set_threads`]).
+    pub model_threads: usize,
     /// Sampler name, as given (`ddpm` or `ddim:S`).
     pub sampler: String,
     /// Planning budgets and the mode limit.
@@ -78,6 +80,9 @@ impl EvalSettings {
         }
         if self.jobs == 0 {
             bail!("--jobs must be at least 1");
+        }
+        if self.model_threads == 0 {
+            bail!("--model-threads must be at least 1");
         }
         if self.first_seed.checked_add(self.trials as u64).is_none() {
             bail!("--first-seed + --trials overflows the seed range");

@@ -26,6 +26,7 @@ fn settings(methods: Vec<Method>, trials: usize) -> EvalSettings {
         first_seed: 1000,
         shard: Shard::ALL,
         jobs: 2,
+        model_threads: 1,
         sampler: "ddim:8".into(),
         online: OnlineSettings {
             time_budget_s: 60.0,
