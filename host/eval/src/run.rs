@@ -13,7 +13,6 @@ use dips_host::online::{Method, run_online};
 use dips_host::planning::Models;
 use dips_host::world::World;
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
-use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
 use crate::settings::{EvalSettings, claim_dir, episode_dir};
@@ -179,33 +178,39 @@ pub fn run_eval(settings: &EvalSettings, dir: &Path) -> anyhow::Result<EvalRepor
     let started = Instant::now();
     let errors = AtomicUsize::new(0);
     let failure: Mutex<Option<anyhow::Error>> = Mutex::new(None);
+    // `jobs` workers take episodes from one queue; the pool has `jobs × model_threads`
+    // threads, so an episode's CSVTO (rayon) uses the cores its model calls use.
     let pool = rayon::ThreadPoolBuilder::new()
-        .num_threads(settings.jobs)
+        .num_threads(settings.jobs * settings.model_threads)
         .build()
         .map_err(|e| anyhow!("thread pool: {e}"))?;
-    pool.install(|| {
-        pending
-            .par_iter()
-            .with_max_len(1)
-            .for_each(|&(method, seed)| {
-                if failure.lock().map(|f| f.is_some()).unwrap_or(true) {
-                    return;
-                }
-                let ep_dir = episode_dir(dir, method.name(), seed);
-                match run_episode(settings, method, seed, &ep_dir) {
-                    Ok(None) => bar.set_message(format!("last: {} seed {seed}", method.name())),
-                    Ok(Some(e)) => {
-                        errors.fetch_add(1, Ordering::Relaxed);
-                        bar.println(format!("{} seed {seed} failed: {e}", method.name()));
+    let queue = Mutex::new(pending.iter().copied());
+    pool.scope(|scope| {
+        for _ in 0..settings.jobs {
+            scope.spawn(|_| {
+                loop {
+                    if failure.lock().map(|f| f.is_some()).unwrap_or(true) {
+                        return;
                     }
-                    Err(e) => {
-                        if let Ok(mut f) = failure.lock() {
-                            f.get_or_insert(e);
+                    let next = queue.lock().ok().and_then(|mut q| q.next());
+                    let Some((method, seed)) = next else { return };
+                    let ep_dir = episode_dir(dir, method.name(), seed);
+                    match run_episode(settings, method, seed, &ep_dir) {
+                        Ok(None) => bar.set_message(format!("last: {} seed {seed}", method.name())),
+                        Ok(Some(e)) => {
+                            errors.fetch_add(1, Ordering::Relaxed);
+                            bar.println(format!("{} seed {seed} failed: {e}", method.name()));
+                        }
+                        Err(e) => {
+                            if let Ok(mut f) = failure.lock() {
+                                f.get_or_insert(e);
+                            }
                         }
                     }
+                    bar.inc(1);
                 }
-                bar.inc(1);
             });
+        }
     });
     bar.finish_and_clear();
     if let Some(e) = failure.into_inner().ok().flatten() {
