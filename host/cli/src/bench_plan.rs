@@ -71,7 +71,8 @@ pub fn run(args: &PlanBenchArgs) -> anyhow::Result<()> {
     let sampler = parse_sampler(&args.sampler)?;
     let dir = models_dir(args.models.as_deref(), task)?;
     let mut models = Models::load(args.engine.into(), &dir, task)?;
-    models.set_threads(crate::model::threads(args.threads)?);
+    let threads = crate::model::threads(args.threads)?;
+    models.set_threads(threads);
     models.check_sampler(&sampler)?;
     let prior = models.prior;
     let mut session = PaperSession::new(models);
@@ -122,7 +123,7 @@ pub fn run(args: &PlanBenchArgs) -> anyhow::Result<()> {
         "engine": format!("{:?}", args.engine).to_lowercase(),
         "sampler": args.sampler,
         "start": "the task's start state",
-        "threads": 1,
+        "threads": threads,
         "calls": calls,
         "seconds": {
             "median": stats.median,
