@@ -62,7 +62,7 @@ pub struct SearchBenchArgs {
     #[arg(long, default_value_t = 3.0)]
     pub seconds: f64,
     /// First seed; call `i` uses `seed + i`.
-    #[arg(long, default_value_t = 0)]
+    #[arg(long, default_value_t = 0, allow_negative_numbers = true)]
     pub seed: u64,
     /// Print JSON (the only output format; accepted for the CLI contract).
     #[arg(long)]
@@ -215,6 +215,14 @@ fn search(a: &SearchBenchArgs) -> anyhow::Result<()> {
     config
         .validate()
         .with_context(|| "invalid search settings")?;
+    let capacity = dips_host::planning::PAPER_K;
+    if a.k == 0 || usize::from(a.k) > capacity {
+        bail!(
+            "--k {}: the benchmarked planner holds 1 to {capacity} particles per node (its \
+             capacity, the paper's k)",
+            a.k
+        );
+    }
     let prior = match task {
         Task::Screwdriver => MarkovPrior::from_rows(
             &[0.8, 0.1, 0.1],

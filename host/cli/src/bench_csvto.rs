@@ -27,7 +27,7 @@ pub struct CsvtoBenchArgs {
     #[arg(long, default_value_t = 7)]
     pub repeats: usize,
     /// Seed of the initial particles.
-    #[arg(long, default_value_t = 0)]
+    #[arg(long, default_value_t = 0, allow_negative_numbers = true)]
     pub seed: u64,
     /// Print JSON (the only output format; accepted for the CLI contract).
     #[arg(long)]

@@ -30,7 +30,7 @@ pub struct PlanBenchArgs {
     #[arg(long, default_value_t = 10)]
     pub calls: u32,
     /// First seed.
-    #[arg(long, default_value_t = 0)]
+    #[arg(long, default_value_t = 0, allow_negative_numbers = true)]
     pub seed: u64,
     /// Diffusion sampler: `ddpm` or `ddim:STEPS`.
     #[arg(long, default_value = crate::episode::DEFAULT_SAMPLER)]

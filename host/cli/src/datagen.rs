@@ -26,7 +26,7 @@ pub struct DatagenArgs {
     #[arg(long)]
     pub out: Option<PathBuf>,
     /// Seed of the first demo; demo i has seed FIRST_SEED + i.
-    #[arg(long, default_value_t = 0)]
+    #[arg(long, default_value_t = 0, allow_negative_numbers = true)]
     pub first_seed: u64,
     /// This machine's part of the seeds, I/N (a job array's task index and count).
     #[arg(long, default_value = "0/1")]

@@ -34,7 +34,7 @@ pub struct EpisodeArgs {
     #[arg(long)]
     pub method: String,
     /// Seed of the episode (contact-sequence draw, search, samplers, CSVTO initialisation).
-    #[arg(long, default_value_t = 0)]
+    #[arg(long, default_value_t = 0, allow_negative_numbers = true)]
     pub seed: u64,
     /// Execute this comma-separated mode sequence instead of the prior's draw (dips-sampled,
     /// csvto-sampled).

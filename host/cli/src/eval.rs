@@ -28,7 +28,7 @@ pub struct EvalArgs {
     pub trials: usize,
     /// Seed of trial 0. The default, 1000, is above every seed the shipped models were trained
     /// or tuned on (demos 0–47, smoke episodes at 100).
-    #[arg(long, default_value_t = 1000)]
+    #[arg(long, default_value_t = 1000, allow_negative_numbers = true)]
     pub first_seed: u64,
     /// Output directory (resumed when it holds an evaluation of the same settings).
     #[arg(long)]

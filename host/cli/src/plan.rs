@@ -44,7 +44,7 @@ pub struct PlanArgs {
     #[arg(long)]
     pub models: Option<PathBuf>,
     /// Seed of the search's random stream.
-    #[arg(long, default_value_t = 0)]
+    #[arg(long, default_value_t = 0, allow_negative_numbers = true)]
     pub seed: u64,
     /// Engine that runs the models.
     #[arg(long, value_enum, default_value_t = PlanEngine::Kernel)]

@@ -127,8 +127,14 @@ pub enum SimCliError {
         /// 0-based column.
         col: usize,
     },
+    /// The trajectory holds no state to draw.
+    #[error("{path} holds no states (its `states` list is empty); nothing to render")]
+    Empty {
+        /// The file.
+        path: String,
+    },
     /// A trajectory row index is out of range.
-    #[error("{path} has {len} states; --step {step} is out of range")]
+    #[error("{path} has {len} states; --step {step} is out of range (0 ≤ step < {len})")]
     Step {
         /// The file.
         path: String,
@@ -371,7 +377,10 @@ fn render_cmd(args: &RenderArgs) -> Result<(), SimCliError> {
             });
         }
         let len = traj.states.len();
-        let step = args.step.unwrap_or(len.saturating_sub(1));
+        if len == 0 {
+            return Err(SimCliError::Empty { path: p });
+        }
+        let step = args.step.unwrap_or(len - 1);
         let state = traj.states.get(step).ok_or(SimCliError::Step {
             path: p.clone(),
             step,

@@ -36,4 +36,13 @@ fn bench_search_prints_json_figures() {
         .expect("run dips");
     assert!(!bad.status.success());
     assert!(String::from_utf8_lossy(&bad.stderr).contains("unknown task"));
+
+    let k17 = Command::new(env!("CARGO_BIN_EXE_dips"))
+        .args(["bench", "search", "--k", "17", "--json"])
+        .output()
+        .expect("run dips");
+    assert!(!k17.status.success());
+    let err = String::from_utf8_lossy(&k17.stderr);
+    assert!(err.contains("--k 17") && err.contains("1 to 16"), "{err}");
+    assert!(!err.contains("CapacityExceeded"), "{err}");
 }

@@ -141,4 +141,9 @@ fn search_settings_out_of_range_name_the_limit() {
     assert!(err.contains("max_depth must be in 1..=16"), "{err}");
     let err = plan(&["--task", "card", "--k", "17"]).unwrap_err();
     assert!(err.contains("at most 16 particles"), "{err}");
+    // A negative seed is a bad value of --seed, not an unknown argument.
+    let err = plan(&["--task", "card", "--seed", "-1"]).unwrap_err();
+    assert!(err.contains("invalid value '-1' for '--seed"), "{err}");
+    let err = plan(&["--task", "card", "--threads", "0"]).unwrap_err();
+    assert!(err.contains("--threads must be at least 1"), "{err}");
 }

@@ -189,3 +189,51 @@ fn hand_file_is_loaded_at_run_time() {
     }
     std::fs::remove_dir_all(&dir).ok();
 }
+
+#[test]
+fn an_empty_trajectory_is_named_as_empty_and_a_bad_step_names_the_range() {
+    let dir = tmpdir("empty");
+    std::fs::create_dir_all(&dir).unwrap();
+    let empty = dir.join("empty.json");
+    std::fs::write(
+        &empty,
+        r#"{"scene":"card","states":[],"valid":[],"contacts":[],"max_penetration":[],"flags":[]}"#,
+    )
+    .unwrap();
+    let r = dips()
+        .args(["sim", "render", "--scene", "card", "--trajectory"])
+        .arg(&empty)
+        .arg("--out")
+        .arg(dir.join("x.svg"))
+        .output()
+        .unwrap();
+    assert!(!r.status.success());
+    let err = String::from_utf8_lossy(&r.stderr);
+    assert!(err.contains("holds no states"), "{err}");
+    assert!(!err.contains("--step"), "no --step was given: {err}");
+
+    let (o, traj) = run_sim("card", r#"{"dq": [[0,0,0,0,0,0,0,0]]}"#, &dir);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let r = dips()
+        .args([
+            "sim",
+            "render",
+            "--scene",
+            "card",
+            "--step",
+            "5",
+            "--trajectory",
+        ])
+        .arg(&traj)
+        .arg("--out")
+        .arg(dir.join("y.svg"))
+        .output()
+        .unwrap();
+    assert!(!r.status.success());
+    let err = String::from_utf8_lossy(&r.stderr);
+    assert!(
+        err.contains("--step 5 is out of range (0 ≤ step < 2)"),
+        "{err}"
+    );
+    std::fs::remove_dir_all(&dir).ok();
+}
