@@ -61,6 +61,26 @@ fn binary_rejects_bad_arguments() {
 }
 
 #[test]
+fn binary_help_prints_the_options_and_succeeds() {
+    for flag in ["--help", "-h"] {
+        let out = Command::new(env!("CARGO_BIN_EXE_dips-firmware-sim"))
+            .arg(flag)
+            .output()
+            .unwrap();
+        assert!(out.status.success(), "{flag}: {:?}", out.status);
+        let text = String::from_utf8_lossy(&out.stdout);
+        for option in [
+            "--listen",
+            "--model-capacity-bytes",
+            "--work-floats",
+            "stdin",
+        ] {
+            assert!(text.contains(option), "{flag}: {option} missing in {text}");
+        }
+    }
+}
+
+#[test]
 fn binary_serves_tcp_connections_one_after_another() {
     use std::io::{BufRead, BufReader, Read};
     use std::net::TcpStream;

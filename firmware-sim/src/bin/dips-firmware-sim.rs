@@ -24,6 +24,25 @@ static WORK: Mutex<[f32; WORK_FLOATS]> = Mutex::new([0.0; WORK_FLOATS]);
 const USAGE: &str =
     "usage: dips-firmware-sim [--listen ADDR] [--model-capacity-bytes N] [--work-floats N]";
 
+/// `--help`: what the program does and every option, on stdout.
+fn help() -> String {
+    format!(
+        "dips-firmware-sim: the DIPS planning kernel served as the hand's controller would, over \
+         the postcard wire protocol (docs/wire.md), with static memory only.\n\n\
+         {USAGE}\n\n\
+         Without --listen it serves one session on stdin/stdout (frames in, frames out;\n\
+         statistics on stderr).\n\n\
+         Options:\n  \
+           --listen ADDR                serve TCP connections on ADDR (e.g. 127.0.0.1:0), one\n                               \
+           after another; prints `listening on ADDR` to stderr\n  \
+           --model-capacity-bytes N     use N bytes of each static model buffer (at most\n                               \
+           {MODEL_CAPACITY_BYTES})\n  \
+           --work-floats N              use N floats of the static planning work area (at most\n                               \
+           {WORK_FLOATS})\n  \
+           -h, --help                   print this help\n"
+    )
+}
+
 struct Args {
     listen: Option<String>,
     capacity: usize,
@@ -39,7 +58,8 @@ fn size(name: &str, v: &str, max: usize) -> Result<usize, String> {
     Ok(n)
 }
 
-fn parse_args() -> Result<Args, String> {
+/// The arguments, or `None` when `--help` was asked for.
+fn parse_args() -> Result<Option<Args>, String> {
     let mut parsed = Args {
         listen: None,
         capacity: MODEL_CAPACITY_BYTES,
@@ -58,11 +78,11 @@ fn parse_args() -> Result<Args, String> {
                 let v = value("--work-floats")?;
                 parsed.work = size("--work-floats", &v, WORK_FLOATS)?;
             }
-            "-h" | "--help" => return Err(USAGE.into()),
+            "-h" | "--help" => return Ok(None),
             other => return Err(format!("unknown argument {other:?}; {USAGE}")),
         }
     }
-    Ok(parsed)
+    Ok(Some(parsed))
 }
 
 fn report(stats: &ServeStats) {
@@ -118,7 +138,11 @@ fn run(args: &Args) -> Result<(), String> {
 
 fn main() -> ExitCode {
     let args = match parse_args() {
-        Ok(a) => a,
+        Ok(Some(a)) => a,
+        Ok(None) => {
+            print!("{}", help());
+            return ExitCode::SUCCESS;
+        }
         Err(msg) => {
             eprintln!("{msg}");
             return ExitCode::from(2);
