@@ -89,7 +89,34 @@ fn a_dips_card_episode_plans_before_every_mode_with_the_shipped_models() {
             assert_eq!(first, &modes[i], "plan {i} was not the executed mode");
         }
     }
-    assert!(v["final_distance_m"].as_f64().unwrap().is_finite());
+    let d = v["final_distance_m"].as_f64().unwrap();
+    assert!(d.is_finite());
+    // success is the documented rule applied to the outcome.
+    assert_eq!(
+        v["success"].as_bool().unwrap(),
+        v["valid"].as_bool().unwrap() && d <= 0.01
+    );
+    assert!(v["success_rule"].as_str().unwrap().contains("1 cm"));
+    // The card's raw states are 8 joints and the card's x, y, yaw, and labelled so.
+    let cols: Vec<&str> = v["state_columns"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|c| c.as_str().unwrap())
+        .collect();
+    assert_eq!(
+        cols.len(),
+        v["mode_runs"][0]["start_state"].as_array().unwrap().len()
+    );
+    assert_eq!(cols[0], "q_index_0");
+    assert_eq!(cols[9], "card_y");
+    assert_eq!(
+        v["plan_state_columns"].as_array().unwrap().len(),
+        plans[0]["expected_terminal_state"]
+            .as_array()
+            .unwrap()
+            .len()
+    );
     let _ = std::fs::remove_dir_all(&dir);
 }
 
@@ -186,6 +213,9 @@ fn a_given_mode_sequence_writes_result_json() {
     assert_eq!(v["modes"], serde_json::json!(["turn"]));
     assert!(v["final_yaw"].as_f64().expect("final_yaw") < -0.2);
     assert!(v["valid"].is_boolean());
+    // One turn of about −0.3 rad is short of the −π/3 the rule asks for.
+    assert_eq!(v["success"], false);
+    assert_eq!(v["state_columns"][14], "yaw");
     assert_eq!(v["csvto_step_s"].as_array().map(Vec::len), Some(12));
     // A fixed sequence makes no planning call.
     assert_eq!(v["planning_s"].as_array().map(Vec::len), Some(0));

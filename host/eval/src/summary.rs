@@ -5,6 +5,8 @@ use std::path::Path;
 
 use anyhow::Context;
 use dips_host::atomic_write::write_atomic;
+use dips_host::execute::episode::episode_success;
+use dips_host::scenes::SceneKind;
 use dips_plot::{BoxPlot, BoxSeries};
 use serde::{Deserialize, Serialize};
 
@@ -46,6 +48,8 @@ pub struct Trial {
     pub outcome: Option<f64>,
     /// Whether the object stayed valid (false for an error).
     pub valid: bool,
+    /// Whether the trial succeeded (`dips_host::execute::episode::episode_success`).
+    pub success: bool,
     /// Executed modes.
     pub modes: Vec<String>,
     /// Planning calls (s).
@@ -124,6 +128,8 @@ pub struct MethodSummary {
     pub errors: usize,
     /// Trials in which the object stayed valid.
     pub valid: usize,
+    /// Trials that succeeded.
+    pub success: usize,
     /// The outcome over the trials with one.
     pub outcome: Option<Stats>,
     /// Every planning call of every trial (s).
@@ -166,6 +172,7 @@ fn read_trial(dir: &Path, method: &str, seed: u64, task: &str) -> anyhow::Result
             seed,
             outcome: None,
             valid: false,
+            success: false,
             modes: Vec::new(),
             planning_s: Vec::new(),
             csvto_step_median_s: None,
@@ -182,11 +189,14 @@ fn read_trial(dir: &Path, method: &str, seed: u64, task: &str) -> anyhow::Result
         "screwdriver" => r.final_yaw,
         _ => r.final_distance_m.map(|d| d * 100.0),
     };
+    let scene = SceneKind::from_name(task)
+        .with_context(|| format!("{}: unknown task {task:?}", path.display()))?;
     Ok(Some(Trial {
         method: r.method,
         seed: r.seed,
         outcome,
         valid: r.valid,
+        success: episode_success(scene, r.valid, r.final_yaw, r.final_distance_m),
         modes: r.modes,
         planning_s: r.planning_s,
         csvto_step_median_s: Stats::of(&r.csvto_step_s).map(|s| s.median),
@@ -217,6 +227,7 @@ pub fn summarize(dir: &Path) -> anyhow::Result<Summary> {
             trials: mine.len(),
             errors: mine.iter().filter(|t| t.error.is_some()).count(),
             valid: mine.iter().filter(|t| t.valid).count(),
+            success: mine.iter().filter(|t| t.success).count(),
             outcome: Stats::of(&outcomes),
             planning_s: Stats::of(&planning),
             csvto_step_s: Stats::of(&csvto),
@@ -348,13 +359,13 @@ pub fn markdown(s: &Summary) -> String {
         s.eval.first_seed + s.eval.trials.saturating_sub(1) as u64,
     );
     out.push_str(&format!(
-        "| method | trials | valid | {what} mean ± std ({unit}) | median | planning call median / p90 (s) | CSVTO step median (s) | episode wall median (s) |\n\
-         |---|---|---|---|---|---|---|---|\n"
+        "| method | trials | valid | success | {what} mean ± std ({unit}) | median | planning call median / p90 (s) | CSVTO step median (s) | episode wall median (s) |\n\
+         |---|---|---|---|---|---|---|---|---|\n"
     ));
     for m in &s.methods {
         let o = m.outcome;
         out.push_str(&format!(
-            "| {} | {}{} | {}/{} | {} | {} | {} / {} | {} | {} |\n",
+            "| {} | {}{} | {}/{} | {}/{} | {} | {} | {} / {} | {} | {} |\n",
             m.method,
             m.trials,
             if m.errors > 0 {
@@ -363,6 +374,8 @@ pub fn markdown(s: &Summary) -> String {
                 String::new()
             },
             m.valid,
+            m.trials,
+            m.success,
             m.trials,
             o.map_or_else(
                 || "–".into(),

@@ -58,6 +58,54 @@ pub fn prior_sequence_for_seed(task: SceneKind, seed: u64) -> Vec<Mode> {
     sample_prior_sequence(task, &mut rng)
 }
 
+/// Screwdriver success: still valid and turned at least this far (rad, clockwise negative):
+/// one planning goal's worth, `π/3`.
+pub const SCREWDRIVER_SUCCESS_YAW: f64 = -std::f64::consts::FRAC_PI_3;
+
+/// Card success: still valid and within this planar distance of its goal (m).
+pub const CARD_SUCCESS_DISTANCE_M: f64 = 0.01;
+
+/// The rule [`episode_success`] applies to `task`, in words (`result.json`'s `success_rule`).
+pub fn success_rule(task: SceneKind) -> &'static str {
+    match task {
+        SceneKind::Screwdriver => "valid and final yaw <= -pi/3 rad (-1.047)",
+        SceneKind::Card => "valid and final distance to the goal <= 1 cm",
+    }
+}
+
+/// Whether an episode succeeded: the object stayed valid and the outcome passed the task's
+/// threshold ([`SCREWDRIVER_SUCCESS_YAW`], [`CARD_SUCCESS_DISTANCE_M`]). Our definition; the
+/// paper reports the outcomes themselves.
+pub fn episode_success(
+    task: SceneKind,
+    valid: bool,
+    final_yaw: Option<f64>,
+    final_distance_m: Option<f64>,
+) -> bool {
+    valid
+        && match task {
+            SceneKind::Screwdriver => final_yaw.is_some_and(|y| y <= SCREWDRIVER_SUCCESS_YAW),
+            SceneKind::Card => final_distance_m.is_some_and(|d| d <= CARD_SUCCESS_DISTANCE_M),
+        }
+}
+
+/// Names of the raw state vectors of `result.json` (`start_state`, `end_state`, each step's
+/// `state` and `planned_state`): the task fingers' joints `q_<finger>_<j>`, then the object's
+/// coordinates (screwdriver roll, pitch, yaw in rad; card x, y in m and yaw in rad).
+pub fn state_columns(task: SceneKind) -> Vec<String> {
+    let mut names: Vec<String> = task
+        .task_fingers()
+        .iter()
+        .flat_map(|f| (0..4).map(move |j| format!("q_{}_{j}", f.name())))
+        .collect();
+    let object: [&str; 3] = match task {
+        SceneKind::Screwdriver => ["roll", "pitch", "yaw"],
+        SceneKind::Card => ["card_x", "card_y", "card_yaw"],
+    };
+    names.extend(object.map(String::from));
+    names
+}
+
 /// `result.json` of one episode.
 #[derive(Debug, Clone, Serialize)]
 pub struct EpisodeResult {
@@ -80,6 +128,15 @@ pub struct EpisodeResult {
     pub final_dy_m: Option<f64>,
     /// Whether the object stayed valid over the whole episode.
     pub valid: bool,
+    /// Whether the episode succeeded ([`episode_success`]).
+    pub success: bool,
+    /// The rule behind `success`, in words.
+    pub success_rule: &'static str,
+    /// Names of the raw state vectors' entries ([`state_columns`]).
+    pub state_columns: Vec<String>,
+    /// Names of the entries of `plans[].expected_terminal_state` (the model contract's state
+    /// columns: the yaw as its cosine and sine).
+    pub plan_state_columns: &'static [&'static str],
     /// Planning time per mode (s); no search for csvto-sampled, so zeros.
     pub planning_s: Vec<f64>,
     /// CSVTO solve time per executed step (s).
@@ -234,6 +291,10 @@ impl EpisodeResult {
             final_distance_m,
             final_dy_m,
             valid,
+            success: episode_success(task, valid, final_yaw, final_distance_m),
+            success_rule: success_rule(task),
+            state_columns: state_columns(task),
+            plan_state_columns: task.task().state_columns(),
             planning_s,
             csvto_step_s,
             mode_runs: runs,
