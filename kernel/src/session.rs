@@ -125,6 +125,22 @@ impl PlanSpec {
         }
     }
 
+    /// The same call with the screwdriver's start yaw known unwrapped (`yaw`, radians, as a
+    /// host tracks it over whole turns). The start's `atan2(sin, cos)` yaw is then taken on the
+    /// branch nearest `yaw`, not within π of the goal ([`Objective::for_goal`]), so a goal more
+    /// than π from the start (a full turn, −2π) is searched as given. No effect for the card.
+    /// [`SpecError::Goal`] when `yaw` is not finite.
+    pub fn with_start_yaw(mut self, yaw: f32) -> Result<Self, SpecError> {
+        if let Objective::Screwdriver(o) = &mut self.objective {
+            if !yaw.is_finite() {
+                return Err(SpecError::Goal);
+            }
+            let raw = ScrewdriverObjective::raw_yaw(&self.start).ok_or(SpecError::StartState)?;
+            o.reference_yaw = yaw + crate::task::wrap_angle(raw - yaw);
+        }
+        Ok(self)
+    }
+
     /// The same call with another seed.
     pub fn with_seed(mut self, seed: u64) -> Self {
         self.search.seed = seed;

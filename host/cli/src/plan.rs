@@ -118,19 +118,24 @@ pub fn run(args: PlanArgs) -> anyhow::Result<()> {
     let sampler = dips_host::planning::parse_sampler(&args.sampler)?;
     let config = search_config(task, &args)?;
 
-    let start: Vec<f32> = contract_state(&World::new(scene).state())
+    let world_state = World::new(scene).state();
+    let start: Vec<f32> = contract_state(&world_state)
         .into_iter()
         .map(|v| v as f32)
         .collect();
+    // The world's raw yaw is unwrapped, so goals more than π away (a full turn) plan as given.
+    let start_yaw = world_state.last().copied().unwrap_or(0.0) as f32;
     let goal = match args.goal {
         Some(goal) => goal,
         None => PlanSpec::paper_goal(task, &start)
             .ok_or_else(|| anyhow!("the world's {} state is too short", task.name()))?,
     };
-    let mut spec = PlanSpec::new(task, &start, goal).map_err(|e| match e {
-        dips_kernel::session::SpecError::Goal => anyhow!("--goal must be finite"),
-        e => anyhow!("{e}"),
-    })?;
+    let mut spec = PlanSpec::new(task, &start, goal)
+        .and_then(|spec| spec.with_start_yaw(start_yaw))
+        .map_err(|e| match e {
+            dips_kernel::session::SpecError::Goal => anyhow!("--goal must be finite"),
+            e => anyhow!("{e}"),
+        })?;
     spec.search = config;
     spec.sampler = sampler;
     spec.check().map_err(|e| anyhow!("{e}"))?;

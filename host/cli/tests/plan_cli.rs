@@ -147,3 +147,33 @@ fn search_settings_out_of_range_name_the_limit() {
     let err = plan(&["--task", "card", "--threads", "0"]).unwrap_err();
     assert!(err.contains("--threads must be at least 1"), "{err}");
 }
+
+#[test]
+fn goals_beyond_a_half_turn_plan_modes() {
+    // From yaw 0 a goal of −3.5 rad (or a full turn) is far away, not already met on another
+    // branch of the angle.
+    for goal in ["-3.5", "-6.28"] {
+        let v = plan(&[
+            "--task",
+            "screwdriver",
+            "--goal",
+            goal,
+            "--k",
+            "4",
+            "--node-budget",
+            "2",
+            "--sampler",
+            "ddim:4",
+            "--json",
+        ])
+        .unwrap_or_else(|e| panic!("--goal {goal}: {e}"));
+        assert!(
+            !v["modes"].as_array().unwrap().is_empty(),
+            "--goal {goal}: no modes planned: {v}"
+        );
+        assert!(
+            v["status"].as_str().unwrap().contains("NodeBudget"),
+            "--goal {goal}: two expansions cannot reach it: {v}"
+        );
+    }
+}
