@@ -1,4 +1,4 @@
-//! The online methods of the paper's experiments (`CONTRACTS.md` §5, spec §3.5): DIPS and its
+//! The online methods of the paper's experiments (`docs/contracts.md` §5, spec §3.5): DIPS and its
 //! ablations, each an episode in which contact modes are chosen and CSVTO is initialised.
 //!
 //! - **DIPS** (`dips`): before each mode, one A* planning call in the kernel from the measured

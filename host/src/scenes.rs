@@ -78,7 +78,7 @@ impl SceneKind {
         self.task().named_modes()
     }
 
-    /// The task's fingers in `CONTRACTS.md` §2 order.
+    /// The task's fingers in `docs/contracts.md` §2 order.
     pub fn task_fingers(self) -> &'static [Finger] {
         match self {
             SceneKind::Screwdriver => &[Finger::Index, Finger::Middle, Finger::Thumb],

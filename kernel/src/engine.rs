@@ -2,7 +2,7 @@
 //! that evaluate the models (the no_std interpreter in this crate, tract on the host).
 //!
 //! Tensors are flat, row-major `f32` slices in the layout of the model contract
-//! (`CONTRACTS.md` §3): `x` is `[batch, horizon, dim]`, `t` and `cond_mask` are `[batch]`,
+//! (`docs/contracts.md` §3): `x` is `[batch, horizon, dim]`, `t` and `cond_mask` are `[batch]`,
 //! `context` is `[batch, fingers]`, `eps` is `[batch, horizon, dim]`, `p_real` is `[batch]`
 //! (the contract's `[B, 1]` output, flattened).
 //! Sizes are run-time values so a model of other dimensions needs no recompilation.

@@ -1,4 +1,4 @@
-//! Contact modes and the two tasks (`CONTRACTS.md` §2).
+//! Contact modes and the two tasks (`docs/contracts.md` §2).
 //!
 //! A contact mode holds one sign per finger: `+1` in contact, `-1` regrasping. A [`Task`]
 //! fixes the finger order, the named modes and the trajectory sizes. Modes are referred to
@@ -184,7 +184,7 @@ impl TaskMode {
         &self.task().modes()[self.id().index()]
     }
 
-    /// The `CONTRACTS.md` §2 name.
+    /// The `docs/contracts.md` §2 name.
     pub const fn name(self) -> &'static str {
         self.spec().name
     }
@@ -219,7 +219,7 @@ impl TaskMode {
     }
 }
 
-/// `CONTRACTS.md` §2 column names (exactly these strings).
+/// `docs/contracts.md` §2 column names (exactly these strings).
 const SCREWDRIVER_STATE_COLUMNS: [&str; 16] = [
     "q_index_0",
     "q_index_1",
@@ -295,7 +295,7 @@ const CARD_ACTION_COLUMNS: [&str; 17] = [
     "f_env_z",
 ];
 
-/// Where things are in a task's `CONTRACTS.md` §2 row `[s_t, u_t]`: finger joints, the object
+/// Where things are in a task's `docs/contracts.md` §2 row `[s_t, u_t]`: finger joints, the object
 /// pose (two plain coordinates, then the `(cos, sin)` of its angle), the joint deltas, one
 /// force triple per finger and, for the card, the table force. The one definition of the
 /// trajectory layout; sizes follow from the finger count.
@@ -359,7 +359,7 @@ impl RowLayout {
     }
 }
 
-/// Sizes of one trajectory segment (`CONTRACTS.md` §2), run-time values.
+/// Sizes of one trajectory segment (`docs/contracts.md` §2), run-time values.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct SegmentDims {
     /// Rows per segment, `T = H + 1`.
@@ -496,7 +496,7 @@ impl Task {
             .map(|i| ModeId(i as u8))
     }
 
-    /// The row layout of `CONTRACTS.md` §2.
+    /// The row layout of `docs/contracts.md` §2.
     pub const fn layout(self) -> RowLayout {
         match self {
             Task::Screwdriver => RowLayout {
@@ -518,7 +518,7 @@ impl Task {
         }
     }
 
-    /// The segment sizes of `CONTRACTS.md` §2.
+    /// The segment sizes of `docs/contracts.md` §2.
     pub const fn dims(self) -> SegmentDims {
         let l = self.layout();
         SegmentDims {
@@ -529,7 +529,7 @@ impl Task {
         }
     }
 
-    /// The state column names of `CONTRACTS.md` §2.
+    /// The state column names of `docs/contracts.md` §2.
     pub const fn state_columns(self) -> &'static [&'static str] {
         match self {
             Task::Screwdriver => &SCREWDRIVER_STATE_COLUMNS,
@@ -537,7 +537,7 @@ impl Task {
         }
     }
 
-    /// The action column names of `CONTRACTS.md` §2.
+    /// The action column names of `docs/contracts.md` §2.
     pub const fn action_columns(self) -> &'static [&'static str] {
         match self {
             Task::Screwdriver => &SCREWDRIVER_ACTION_COLUMNS,

@@ -42,7 +42,7 @@ pub struct PlanSpec {
     pub sampler: SamplerConfig,
     /// The contact-mode prior (the search floors it at `search.p_min`).
     pub prior: MarkovPrior,
-    /// The raw start state (`CONTRACTS.md` §2 state columns).
+    /// The raw start state (`docs/contracts.md` §2 state columns).
     pub start: heapless::Vec<f32, MAX_STATE_DIM>,
     /// The task objective for the search goal ([`Objective::for_goal`]).
     pub objective: Objective,

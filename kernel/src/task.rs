@@ -1,4 +1,4 @@
-//! The real task costs on raw trajectory segments (`CONTRACTS.md` §2 layout), as the search
+//! The real task costs on raw trajectory segments (`docs/contracts.md` §2 layout), as the search
 //! uses them: the per-mode CSVTO cost `J` of `spec/algorithms.md` §2.4 evaluated on a
 //! diffused segment, the terminal cost `φ` and the goal test.
 //!

@@ -303,7 +303,7 @@ impl From<&SearchReport> for PlanReply {
 pub struct PlanInputs {
     /// The task.
     pub task: Task,
-    /// Its segment sizes (`CONTRACTS.md` §2).
+    /// Its segment sizes (`docs/contracts.md` §2).
     pub dims: SegmentDims,
     /// The search settings.
     pub config: SearchConfig,

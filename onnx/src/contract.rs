@@ -1,4 +1,4 @@
-//! Model contract v1 (`CONTRACTS.md` §3): metadata, inputs and outputs, and their validation.
+//! Model contract v1 (`docs/contracts.md` §3): metadata, inputs and outputs, and their validation.
 
 use std::path::Path;
 
@@ -112,7 +112,7 @@ impl Contract {
         }
     }
 
-    /// Check the dimensions and column names against the task's layout (`CONTRACTS.md` §2).
+    /// Check the dimensions and column names against the task's layout (`docs/contracts.md` §2).
     pub fn check_task(&self) -> Result<()> {
         let (task, horizon, fingers) = (&self.task, self.horizon, self.fingers);
         let (state_dim, action_dim) = (self.state_dim, self.action_dim);

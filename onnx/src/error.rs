@@ -18,7 +18,7 @@ pub enum ModelError {
     /// The bytes are not a valid ONNX protobuf (truncated or corrupt file).
     #[error("not a valid ONNX model (corrupt or truncated protobuf): {0}")]
     Protobuf(String),
-    /// The model does not follow contract v1 (`CONTRACTS.md` §3).
+    /// The model does not follow contract v1 (`docs/contracts.md` §3).
     #[error("model contract violation: {0}")]
     Contract(String),
     /// The model is valid but not the one the caller asked for (task, role).

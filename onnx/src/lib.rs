@@ -1,4 +1,4 @@
-//! `dips-onnx`: the DIPS model contract v1 (`CONTRACTS.md` §3), the two engines that run such
+//! `dips-onnx`: the DIPS model contract v1 (`docs/contracts.md` §3), the two engines that run such
 //! models (tract on the host, the `dips-kernel` interpreter on a lowered blob) and the lowering
 //! from ONNX to the kernel blob.
 

@@ -1,4 +1,4 @@
-//! The tasks a model can be trained for and their trajectory layout (`CONTRACTS.md` §2): the
+//! The tasks a model can be trained for and their trajectory layout (`docs/contracts.md` §2): the
 //! kernel's [`Task`] sizes and column names, as owned strings for the contract checks.
 
 use dips_kernel::mode::Task;

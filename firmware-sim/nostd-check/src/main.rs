@@ -85,7 +85,7 @@ impl Write for Line {
 }
 
 // ---------------------------------------------------------------------------------------
-// The card task's sizes (CONTRACTS.md §2) and two analytic models of them.
+// The card task's sizes (docs/contracts.md §2) and two analytic models of them.
 
 const STEPS: usize = 32;
 const DIMS: ModelDims = ModelDims {

@@ -83,7 +83,7 @@ pub fn run(args: BenchArgs) -> anyhow::Result<()> {
 /// The synthetic sampler: from each start state, contact modes move the object toward the
 /// task goal (screwdriver yaw −π/6, card y −2 cm) with multiplicative noise, regrasps hold
 /// it with small noise; joints take a noisy random walk; actions are noise. Layout as in
-/// `CONTRACTS.md` §2.
+/// `docs/contracts.md` §2.
 #[derive(Debug)]
 struct SyntheticSampler {
     task: Task,

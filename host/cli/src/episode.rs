@@ -1,5 +1,5 @@
 //! `dips episode`: one closed-loop episode of a method in the quasi-static world
-//! (`CONTRACTS.md` §5; the methods are `dips_host::online`'s).
+//! (`docs/contracts.md` §5; the methods are `dips_host::online`'s).
 
 use std::path::PathBuf;
 

@@ -1,4 +1,4 @@
-//! The `dips` command line (`CONTRACTS.md` §5). Each command group lives in its own module.
+//! The `dips` command line (`docs/contracts.md` §5). Each command group lives in its own module.
 
 use clap::{Parser, Subcommand};
 

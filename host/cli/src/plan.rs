@@ -1,4 +1,4 @@
-//! `dips plan`: one A* planning call from the task's start state (`CONTRACTS.md` §5).
+//! `dips plan`: one A* planning call from the task's start state (`docs/contracts.md` §5).
 //!
 //! The models are read from `--models DIR` or the shipped ones (`denoiser.onnx` and
 //! `discriminator.onnx`, contract v1, checked against the task) and run by the kernel's

@@ -2,7 +2,7 @@
 //!
 //! `dips sim run --scene screwdriver|card --commands CMDS.json --out OUT.json` executes one
 //! 1 s action per row of CMDS (`{"dq": [[...], ...]}`: joint deltas of the task fingers in
-//! `CONTRACTS.md` §2 order, relative to the current measured joints) and writes
+//! `docs/contracts.md` §2 order, relative to the current measured joints) and writes
 //! `{"scene", "states", "valid", "contacts", "max_penetration", "flags", "metric"}` with one state row per
 //! action plus the initial state first. `contacts[k]` are the contacts at the end of action k
 //! (`contacts[0]` is empty): finger, part, point, normal (out of the part), force (exerted by

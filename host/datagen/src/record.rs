@@ -1,7 +1,7 @@
 //! One demo: an episode driven by the task's prior, executed closed-loop by CSVTO in the
 //! world, with one training trajectory per CSVTO particle at every online step.
 //!
-//! A trajectory has the `CONTRACTS.md` §2 layout, `T = H + 1` rows `[s_t, u_t]`: the rows the
+//! A trajectory has the `docs/contracts.md` §2 layout, `T = H + 1` rows `[s_t, u_t]`: the rows the
 //! mode has already executed (its measured states `s_0 … s_{k−1}` with the controls that were
 //! commanded from them: the executed `Δq` and the planned contact forces), then the particle's
 //! plan from the measured state `s_k` (spec §4.3: executed prefix ⧺ plan, controls shifted so

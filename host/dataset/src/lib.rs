@@ -6,7 +6,7 @@
 //!
 //! | name | dtype | shape | holds |
 //! |---|---|---|---|
-//! | `trajectories` | F32 | `[N, T, D]` | raw `CONTRACTS.md` §2 rows (yaw/θ as cos/sin, not normalised) |
+//! | `trajectories` | F32 | `[N, T, D]` | raw `docs/contracts.md` §2 rows (yaw/θ as cos/sin, not normalised) |
 //! | `contexts` | F32 | `[N, F]` | the contact mode of each trajectory, ±1 per finger |
 //! | `mode_index` | I64 | `[N]` | which executed mode (index into `modes`) the sample belongs to |
 //! | `step` | I64 | `[N]` | the online (replanning) step within that mode |

@@ -1,5 +1,5 @@
 //! Closed-loop episodes: a contact sequence executed mode by mode, and its result
-//! (`CONTRACTS.md` §5).
+//! (`docs/contracts.md` §5).
 
 use std::path::Path;
 

@@ -1,4 +1,4 @@
-//! Conversion between the problem's rows and the `CONTRACTS.md` §2 trajectory layout used by
+//! Conversion between the problem's rows and the `docs/contracts.md` §2 trajectory layout used by
 //! datasets, diffusion and the search.
 //!
 //! Contract: `T = H + 1` rows `[s_t, u_t]`, row 0 holding the start state, the last row's

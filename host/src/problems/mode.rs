@@ -1,4 +1,4 @@
-//! Tasks and contact modes (CONTRACTS §2): the kernel's [`TaskMode`](dips_kernel::mode::TaskMode) under the host's name,
+//! Tasks and contact modes (docs/contracts.md §2): the kernel's [`TaskMode`](dips_kernel::mode::TaskMode) under the host's name,
 //! and the parse error the command line reports.
 
 pub use dips_kernel::mode::TaskMode as Mode;

@@ -648,7 +648,7 @@ impl World {
         self.joints
     }
 
-    /// The task fingers' joints in `CONTRACTS.md` §2 order (12 or 8).
+    /// The task fingers' joints in `docs/contracts.md` §2 order (12 or 8).
     pub fn task_joints(&self) -> Vec<f64> {
         self.scene
             .task_fingers()
@@ -768,7 +768,7 @@ impl World {
         worst
     }
 
-    /// Execute one action: joint deltas for the task fingers (`CONTRACTS.md` §2 order) relative
+    /// Execute one action: joint deltas for the task fingers (`docs/contracts.md` §2 order) relative
     /// to the current measured joints, held for one action duration.
     pub fn step_action(&mut self, dq: &[f64]) -> Result<StepReport, WorldError> {
         let n = self.scene.action_dim();
@@ -1264,7 +1264,7 @@ impl World {
     }
 }
 
-/// The force columns of a `CONTRACTS.md` §2 action row from a step's contacts: for each task
+/// The force columns of a `docs/contracts.md` §2 action row from a step's contacts: for each task
 /// finger the force it exerts on the object (world frame, N; zero when not touching), then for
 /// the card the environment force `f_env`, the force of the table on the card. 9 numbers in
 /// both scenes.

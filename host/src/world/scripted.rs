@@ -1,4 +1,4 @@
-//! Scripted fingertip motions turned into actions (joint deltas in `CONTRACTS.md` §2 order):
+//! Scripted fingertip motions turned into actions (joint deltas in `docs/contracts.md` §2 order):
 //! the moves used by the physical checks, the benchmark and the CLI examples.
 
 use nalgebra::{Point3, Vector3};

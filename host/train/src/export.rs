@@ -1,4 +1,4 @@
-//! ONNX export under model contract v1 (`CONTRACTS.md` §3), written with `tract_onnx::pb`.
+//! ONNX export under model contract v1 (`docs/contracts.md` §3), written with `tract_onnx::pb`.
 
 use std::path::Path;
 

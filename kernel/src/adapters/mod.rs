@@ -3,7 +3,7 @@
 //! (through the diffusion sampler), [`DiscriminatorScorer`] its
 //! [`crate::search::SegmentScorer`] over any [`crate::engine::DiscriminatorEngine`].
 //!
-//! Both work on raw segments in the `CONTRACTS.md` §2 layout, which is also the models'
+//! Both work on raw segments in the `docs/contracts.md` §2 layout, which is also the models'
 //! layout: angles that wrap are `(cos, sin)` pairs in both, so no column is converted; only
 //! the models' column normalization is applied (and undone). All memory is caller-provided
 //! and nothing allocates. A model whose sizes differ from the problem's is refused with a

@@ -44,7 +44,7 @@ impl SamplerAdapterLayout {
 /// [`SamplerConfig`]) with classifier-free guidance, the contact modes as context (±1), and
 /// the raw start states inpainted into row 0.
 ///
-/// Raw segments are the `CONTRACTS.md` §2 layout, which is the model's (yaw as `cos`, `sin`);
+/// Raw segments are the `docs/contracts.md` §2 layout, which is the model's (yaw as `cos`, `sin`);
 /// the model's normalization is applied to the start states and undone on the output, and
 /// row 0's state columns come back exactly equal to the start state. The noise comes from the
 /// planner's stream, so a seed fixes the plan.

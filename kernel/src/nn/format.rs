@@ -283,7 +283,7 @@ pub enum Op {
     },
 }
 
-/// Contract metadata carried by the blob (`CONTRACTS.md` §3).
+/// Contract metadata carried by the blob (`docs/contracts.md` §3).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct Meta<'a> {
     /// `dips.contract`.

@@ -2,7 +2,7 @@
 //! `M`, the discriminator `Ψ`, and the task's costs (`J`, `φ`, goal). The real models plug in
 //! through adapters over [`crate::engine`]; the real task costs are in [`crate::task`].
 //!
-//! All trajectory data is raw (de-normalized), in the `CONTRACTS.md` §2 layout: a segment is
+//! All trajectory data is raw (de-normalized), in the `docs/contracts.md` §2 layout: a segment is
 //! `[T × D]` row-major, row `t` = `[s_t, u_t]`, row 0 holds the start state.
 
 use crate::mode::{ContactMode, SegmentDims};

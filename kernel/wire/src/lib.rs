@@ -5,7 +5,7 @@
 //! and COBS-framed (a `0x00` byte ends every frame); [`FrameAccumulator`] turns an arbitrary
 //! byte stream back into frames so that a corrupted frame costs only itself.
 //!
-//! Rules (`CONTRACTS.md` §6): enum variants are append-only (postcard encodes the variant
+//! Rules (`docs/contracts.md` §6): enum variants are append-only (postcard encodes the variant
 //! index), no `usize`/`isize` and no nalgebra types on the wire, units in field names, bounded
 //! containers only. Any change to the encoded layout changes [`SCHEMA_KEY`] (the golden-bytes
 //! tests fail until it is updated) and a breaking change bumps [`PROTOCOL_VERSION`].

@@ -10,7 +10,7 @@ pub const MAX_STATE_DIM: usize = 16;
 /// Most contact modes in a planned sequence.
 pub const MAX_PLAN_MODES: usize = 16;
 
-/// The manipulation task (`CONTRACTS.md` §2).
+/// The manipulation task (`docs/contracts.md` §2).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, MaxSize)]
 pub enum Task {
     /// Turning a screwdriver with index, middle and thumb.
