@@ -64,7 +64,7 @@ pub struct SearchBenchArgs {
     /// First seed; call `i` uses `seed + i`.
     #[arg(long, default_value_t = 0, allow_negative_numbers = true)]
     pub seed: u64,
-    /// Print JSON (the only output format; accepted for the CLI contract).
+    /// Print JSON instead of readable `key: value` lines.
     #[arg(long)]
     pub json: bool,
 }
@@ -315,7 +315,7 @@ fn measure(a: &SearchBenchArgs, spec: &PlanSpec) -> anyhow::Result<()> {
             "size_of_bytes": std::mem::size_of::<PaperPlanner>(),
         },
     });
-    crate::output::line(&serde_json::to_string_pretty(&out)?)?;
+    crate::output::figures(a.json, &out)?;
     Ok(())
 }
 

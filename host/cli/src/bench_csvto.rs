@@ -29,7 +29,7 @@ pub struct CsvtoBenchArgs {
     /// Seed of the initial particles.
     #[arg(long, default_value_t = 0, allow_negative_numbers = true)]
     pub seed: u64,
-    /// Print JSON (the only output format; accepted for the CLI contract).
+    /// Print JSON instead of readable `key: value` lines.
     #[arg(long)]
     pub json: bool,
 }
@@ -111,6 +111,6 @@ pub fn run(args: CsvtoBenchArgs) -> anyhow::Result<()> {
         "warmup_iterations": settings.warmup_iters,
         "best_max_eq_violation": violation,
     });
-    crate::output::line(&serde_json::to_string_pretty(&out)?)?;
+    crate::output::figures(args.json, &out)?;
     Ok(())
 }

@@ -19,7 +19,7 @@ pub struct InferenceArgs {
     /// Timed calls per engine (after warm-up calls).
     #[arg(long, default_value_t = 50)]
     pub iters: usize,
-    /// Print JSON (the only output format).
+    /// Print JSON instead of readable `key: value` lines.
     #[arg(long)]
     pub json: bool,
 }
@@ -86,9 +86,9 @@ pub fn run(a: &InferenceArgs) -> anyhow::Result<()> {
         .zip(&kernel_out)
         .map(|(x, y)| (x - y).abs())
         .fold(0.0f32, f32::max);
-    crate::output::line(&format!(
-        "{}",
-        serde_json::json!({
+    crate::output::figures(
+        a.json,
+        &serde_json::json!({
             "bench": "inference",
             "file": a.file.display().to_string(),
             "role": c.role.name(),
@@ -101,7 +101,7 @@ pub fn run(a: &InferenceArgs) -> anyhow::Result<()> {
             "kernel_min_s": kernel_min_s,
             "kernel_over_tract": kernel_s / tract_s,
             "max_abs_diff": max_abs_diff,
-        })
-    ))?;
+        }),
+    )?;
     Ok(())
 }

@@ -44,7 +44,7 @@ pub struct PlanBenchArgs {
     /// Engine that runs the models.
     #[arg(long, value_enum, default_value_t = EngineArg::Kernel)]
     pub engine: EngineArg,
-    /// Print JSON (the only output format; accepted for the CLI contract).
+    /// Print JSON instead of readable `key: value` lines.
     #[arg(long)]
     pub json: bool,
     /// Threads of each model call (default: every core). The plan does not depend on it, only
@@ -132,6 +132,6 @@ pub fn run(args: &PlanBenchArgs) -> anyhow::Result<()> {
             "mean": stats.mean,
         },
     });
-    crate::output::line(&serde_json::to_string_pretty(&out)?)?;
+    crate::output::figures(args.json, &out)?;
     Ok(())
 }

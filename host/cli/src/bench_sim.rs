@@ -17,7 +17,7 @@ pub enum ContactModelArg {
 /// `dips bench sim` arguments.
 #[derive(Debug, Args)]
 pub struct BenchSimArgs {
-    /// Print JSON (the only output format).
+    /// Print JSON instead of readable `key: value` lines.
     #[arg(long)]
     pub json: bool,
     /// Actions timed per scenario.
@@ -35,11 +35,6 @@ pub fn main(args: BenchSimArgs) -> anyhow::Result<()> {
         ContactModelArg::PlainCone => ContactModel::PlainCone,
     };
     let report = bench::run(args.actions.max(1), model)?;
-    let text = if args.json {
-        serde_json::to_string(&report)?
-    } else {
-        serde_json::to_string_pretty(&report)?
-    };
-    crate::output::line(&text)?;
+    crate::output::figures(args.json, &serde_json::to_value(&report)?)?;
     Ok(())
 }

@@ -20,3 +20,84 @@ pub fn is_broken_pipe(e: &anyhow::Error) -> bool {
             .is_some_and(|io| io.kind() == std::io::ErrorKind::BrokenPipe)
     })
 }
+
+/// Print a command's figures: JSON with `--json` (`json`), else the same figures as indented
+/// `key: value` lines for a person (numbers as JSON writes them, short lists of scalars on one
+/// line).
+pub fn figures(json: bool, value: &serde_json::Value) -> anyhow::Result<()> {
+    if json {
+        return line(&serde_json::to_string_pretty(value)?);
+    }
+    let mut text = String::new();
+    readable(value, 0, &mut text);
+    line(text.trim_end_matches('\n'))
+}
+
+/// Whether `v` prints on one line.
+fn scalar(v: &serde_json::Value) -> bool {
+    !v.is_object() && !v.is_array()
+}
+
+fn readable(value: &serde_json::Value, depth: usize, out: &mut String) {
+    let pad = "  ".repeat(depth);
+    match value {
+        serde_json::Value::Object(map) => {
+            for (k, v) in map {
+                match v {
+                    serde_json::Value::Array(items)
+                        if items.iter().all(scalar) && items.len() <= 16 =>
+                    {
+                        let list: Vec<String> = items.iter().map(one_line).collect();
+                        out.push_str(&format!("{pad}{k}: [{}]\n", list.join(", ")));
+                    }
+                    v if scalar(v) => out.push_str(&format!("{pad}{k}: {}\n", one_line(v))),
+                    v => {
+                        out.push_str(&format!("{pad}{k}:\n"));
+                        readable(v, depth + 1, out);
+                    }
+                }
+            }
+        }
+        serde_json::Value::Array(items) => {
+            for (i, v) in items.iter().enumerate() {
+                if scalar(v) {
+                    out.push_str(&format!("{pad}- {}\n", one_line(v)));
+                } else {
+                    out.push_str(&format!("{pad}- [{i}]\n"));
+                    readable(v, depth + 1, out);
+                }
+            }
+        }
+        v => out.push_str(&format!("{pad}{}\n", one_line(v))),
+    }
+}
+
+/// A scalar as text: strings without quotes, everything else as JSON writes it.
+fn one_line(v: &serde_json::Value) -> String {
+    match v {
+        serde_json::Value::String(s) => s.clone(),
+        v => v.to_string(),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn readable_figures_name_every_value() {
+        let v = serde_json::json!({
+            "bench": "search",
+            "settings": {"k": 16, "depth": 7},
+            "calls": [{"seconds": 0.5, "modes": ["turn", "index-regrasp"]}],
+            "p": [1, 2.5]
+        });
+        let mut text = String::new();
+        readable(&v, 0, &mut text);
+        assert_eq!(
+            text,
+            "bench: search\ncalls:\n  - [0]\n    modes: [turn, index-regrasp]\n    seconds: 0.5\n\
+             p: [1, 2.5]\nsettings:\n  depth: 7\n  k: 16\n"
+        );
+    }
+}

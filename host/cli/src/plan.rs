@@ -68,7 +68,7 @@ pub struct PlanArgs {
     /// Diffusion sampler: `ddpm` (the paper's) or `ddim:STEPS`.
     #[arg(long, default_value = crate::episode::DEFAULT_SAMPLER)]
     pub sampler: String,
-    /// Print JSON (the only output format).
+    /// Print JSON instead of readable `key: value` lines.
     #[arg(long)]
     pub json: bool,
     /// Threads of each model call (default: every core). The plan does not depend on it, only
@@ -198,7 +198,7 @@ pub fn run(args: PlanArgs) -> anyhow::Result<()> {
         },
         "planning_s": planning_s,
     });
-    crate::output::line(&serde_json::to_string_pretty(&out)?)?;
+    crate::output::figures(args.json, &out)?;
     Ok(())
 }
 

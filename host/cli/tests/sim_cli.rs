@@ -114,6 +114,15 @@ fn bench_sim_prints_json_figures() {
     let sc = v["scenarios"].as_array().unwrap();
     assert_eq!(sc.len(), 4);
     assert!(sc.iter().all(|s| s["mean_ms"].as_f64().unwrap() > 0.0));
+    // Without --json the same figures come as readable lines, not JSON.
+    let o = dips()
+        .args(["bench", "sim", "--actions", "2"])
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let text = String::from_utf8_lossy(&o.stdout);
+    assert!(serde_json::from_str::<serde_json::Value>(&text).is_err(), "{text}");
+    assert!(text.starts_with("bench: sim\n") && text.contains("mean_ms: "), "{text}");
 }
 
 #[test]
