@@ -180,7 +180,8 @@ pub fn diffusion_particles<H: Hand + ?Sized>(
     let context: Vec<f32> = (0..n).flat_map(|_| ctx1.iter().copied()).collect();
     let s0: Vec<f32> = contract_state(&start).iter().map(|&v| v as f32).collect();
     let starts: Vec<f32> = (0..n).flat_map(|_| s0.iter().copied()).collect();
-    let out = sample_trajectories(engine, sampler, &context, &starts, rng)
+    let invariant = dips_kernel::session::invariant_angle(hand.scene().task());
+    let out = sample_trajectories(engine, sampler, &context, &starts, invariant, rng)
         .with_context(|| format!("diffusion initialisation of {}", mode.name()))?;
     out.chunks_exact(td)
         .map(|t| {

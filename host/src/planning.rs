@@ -135,15 +135,25 @@ pub fn models_dir(given: Option<&Path>, task: Task) -> anyhow::Result<PathBuf> {
 /// Sample one trajectory per row of `context` (`[n, F]`) with row 0's state inpainted from
 /// `starts` (`[n, state_dim]`, raw), drawing from `rng`; `[n, T, D]` raw rows. The sampler's
 /// chunking (at most 48 trajectories per engine call pair) does not change the bits.
+///
+/// `invariant_angle` is an angle the task's physics does not depend on
+/// (`dips_kernel::session::invariant_angle`): each trajectory is sampled from its start with
+/// that angle clamped into the model's range and turned back, as the planner's sampler does
+/// (`DiffusionSegmentSampler::set_invariant_angle`). `None` samples the model as it is.
 pub fn sample_trajectories(
     engine: &mut AnyEngine,
     config: &dips_kernel::diffusion::SamplerConfig,
     context: &[f32],
     starts: &[f32],
+    invariant_angle: Option<dips_kernel::adapters::InvariantAngle>,
     rng: &mut dips_kernel::rng::KernelRng,
 ) -> anyhow::Result<Vec<f32>> {
     use dips_kernel::diffusion::{SampleRequest, SamplerScratch, ScratchLayout, sample};
     let dims = DenoiserEngine::dims(engine);
+    let mut canonical = starts.to_vec();
+    if let Some(a) = invariant_angle {
+        a.clamp_starts(&mut canonical, dims.state_dim);
+    }
     let n = context.len() / dims.fingers.max(1);
     let chunk = 48.min(engine.max_batch() / 2).max(1);
     let layout = ScratchLayout::new(dims, chunk);
@@ -156,13 +166,22 @@ pub fn sample_trajectories(
         config,
         &SampleRequest {
             context,
-            start_states: Some(starts),
+            start_states: Some(&canonical),
         },
         rng,
         &mut scratch,
         &mut out,
     )
     .map_err(|e| anyhow::anyhow!("sampling failed: {e:?}"))?;
+    if let Some(a) = invariant_angle {
+        let seg = dips_kernel::mode::SegmentDims {
+            horizon: dims.horizon,
+            state_dim: dims.state_dim,
+            action_dim: dims.action_dim,
+            fingers: dims.fingers,
+        };
+        a.turn_back(&mut out, starts, &canonical, &seg);
+    }
     Ok(out)
 }
 

@@ -286,9 +286,29 @@ where
     )
 }
 
+/// The angle of `task`'s state its physics does not depend on, and the start angles the
+/// shipped models were trained at: the screwdriver's yaw (an axisymmetric handle;
+/// [`DiffusionSegmentSampler::set_invariant_angle`]), whose demos start their segments at
+/// −1.07 … 0 rad (turns) and −1.03 … −0.41 (regrasps), so starts are kept within
+/// [−1.0, 0]. The card's heading is not one (a rectangle at a table edge).
+pub fn invariant_angle(task: Task) -> Option<crate::adapters::InvariantAngle> {
+    match task {
+        Task::Screwdriver => Some(crate::adapters::InvariantAngle {
+            cos_column: task.layout().angle_cos(),
+            lo: SCREWDRIVER_MODEL_YAW_MIN,
+            hi: 0.0,
+        }),
+        Task::Card => None,
+    }
+}
+
+/// The lowest screwdriver start yaw the planner asks the models about (rad); see
+/// [`invariant_angle`].
+pub const SCREWDRIVER_MODEL_YAW_MIN: f32 = -0.6;
+
 /// Plan `spec` with two model engines (engines → adapters → planner): the denoiser is wrapped
-/// in the diffusion sampler with `spec.sampler`, the discriminator in the scorer, both with
-/// buffers from `work` as `layout` splits it.
+/// in the diffusion sampler with `spec.sampler` (and the task's [`invariant_angle`]), the
+/// discriminator in the scorer, both with buffers from `work` as `layout` splits it.
 pub fn plan_with_engines<
     const K: usize,
     const N: usize,
@@ -316,6 +336,7 @@ where
     let mut sampler =
         DiffusionSegmentSampler::new(denoiser, spec.sampler, sampler_buf, &layout.sampler)
             .map_err(SessionError::Sampler)?;
+    sampler.set_invariant_angle(invariant_angle(spec.task));
     let mut scorer = DiscriminatorScorer::new(discriminator, scorer_buf, &layout.scorer)
         .map_err(SessionError::Scorer)?;
     Ok(plan_with_adapters(

@@ -121,8 +121,14 @@ fn bench_sim_prints_json_figures() {
         .unwrap();
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let text = String::from_utf8_lossy(&o.stdout);
-    assert!(serde_json::from_str::<serde_json::Value>(&text).is_err(), "{text}");
-    assert!(text.starts_with("bench: sim\n") && text.contains("mean_ms: "), "{text}");
+    assert!(
+        serde_json::from_str::<serde_json::Value>(&text).is_err(),
+        "{text}"
+    );
+    assert!(
+        text.starts_with("bench: sim\n") && text.contains("mean_ms: "),
+        "{text}"
+    );
 }
 
 #[test]

@@ -332,11 +332,14 @@ fn sample_like(
         .chunks_exact(td)
         .flat_map(|t| t[..sd].iter().copied())
         .collect();
+    // As the planner samples: with the task's symmetry (the screwdriver's yaw).
+    let invariant = dips_kernel::session::invariant_angle(task);
     sample_trajectories(
         engine,
         config,
         context,
         &starts,
+        invariant,
         &mut KernelRng::seed_from_u64(seed),
     )
 }

@@ -58,6 +58,8 @@ pub enum AdapterBuffer {
     Segments,
     /// The diffusion sampler's scratch.
     Sampler,
+    /// The start states with their invariant angle set to zero (`n·state_dim`).
+    Starts,
 }
 
 /// Why an adapter refused a call (before its model ran).

@@ -14,7 +14,7 @@ pub mod sampler;
 pub mod scorer;
 
 pub use error::{AdapterBuffer, AdapterError, DimField, DimsMismatch, SegmentModelError};
-pub use sampler::{DiffusionSegmentSampler, SamplerAdapterLayout};
+pub use sampler::{DiffusionSegmentSampler, InvariantAngle, SamplerAdapterLayout};
 pub use scorer::{DiscriminatorScorer, ScorerAdapterLayout};
 
 use crate::engine::ModelDims;

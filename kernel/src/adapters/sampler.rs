@@ -17,6 +17,9 @@ pub struct SamplerAdapterLayout {
     pub max_segments: usize,
     /// The contact-mode rows, `max_segments · F`.
     pub context: usize,
+    /// The start states with an invariant angle zeroed, `max_segments · state_dim`
+    /// ([`DiffusionSegmentSampler::set_invariant_angle`]).
+    pub starts: usize,
     /// The diffusion sampler's scratch.
     pub sampler: ScratchLayout,
 }
@@ -29,13 +32,14 @@ impl SamplerAdapterLayout {
         Self {
             max_segments,
             context: max_segments * model.fingers,
+            starts: max_segments * model.state_dim,
             sampler: ScratchLayout::new(model, chunk),
         }
     }
 
     /// Total `f32`s.
     pub const fn total(&self) -> usize {
-        self.context + self.sampler.total()
+        self.context + self.starts + self.sampler.total()
     }
 }
 
@@ -54,6 +58,8 @@ pub struct DiffusionSegmentSampler<'s, E> {
     config: SamplerConfig,
     scratch: SamplerScratch<'s>,
     context: &'s mut [f32],
+    starts: &'s mut [f32],
+    invariant_angle: Option<InvariantAngle>,
     capacity: usize,
 }
 
@@ -73,8 +79,11 @@ impl<'s, E: DenoiserEngine> DiffusionSegmentSampler<'s, E> {
             });
         }
         let (context, rest) = buf.split_at_mut(layout.context);
+        let (starts, rest) = rest.split_at_mut(layout.starts);
         let scratch = SamplerScratch::split(rest, &layout.sampler).map_err(scratch_error)?;
-        Self::from_parts(engine, config, scratch, context)
+        let mut sampler = Self::from_parts(engine, config, scratch, context)?;
+        sampler.starts = starts;
+        Ok(sampler)
     }
 
     /// An adapter over separately provided buffers: the diffusion scratch and `context`
@@ -101,8 +110,26 @@ impl<'s, E: DenoiserEngine> DiffusionSegmentSampler<'s, E> {
             config,
             scratch,
             context,
+            starts: &mut [],
+            invariant_angle: None,
             capacity,
         })
+    }
+
+    /// Declare an angle of the state a symmetry of the task (`None`, the default: none).
+    ///
+    /// The screwdriver's handle is a solid of revolution and its yaw is applied last
+    /// (`Rx(roll)·Ry(pitch)·Rz(yaw)`), so a state and the same state with another yaw are the
+    /// same physical situation: the same contacts, forces and costs (regrasp targets and goals
+    /// are relative to the yaw). A segment whose start angle lies outside `[lo, hi]`, the
+    /// angles the model was trained at, is sampled from its start with the angle clamped into
+    /// them, and every row's angle is turned back by the difference. Without it a model
+    /// trained on episodes that start at yaw 0 (no yaw augmentation) is asked about yaws it has
+    /// not seen: measured, from yaws below −1 rad its turns barely turned, and the search
+    /// stopped with three or four of seven modes left. Row 0's state stays exactly the given
+    /// start; inside `[lo, hi]` nothing changes.
+    pub fn set_invariant_angle(&mut self, angle: Option<InvariantAngle>) {
+        self.invariant_angle = angle;
     }
 
     /// The sampler settings.
@@ -214,9 +241,30 @@ impl<E: DenoiserEngine> SegmentSampler for DiffusionSegmentSampler<'_, E> {
                 capacity: self.capacity,
             })?;
         write_context(modes, fingers, context)?;
+        let sd = dims.state_dim;
+        let turned = match self.invariant_angle {
+            Some(a) if a.cos_column + 1 < sd => {
+                let got = self.starts.len();
+                let clamped =
+                    self.starts
+                        .get_mut(..n * sd)
+                        .ok_or(AdapterError::ScratchTooSmall {
+                            buffer: AdapterBuffer::Starts,
+                            needed: n * sd,
+                            got,
+                        })?;
+                clamped.copy_from_slice(starts);
+                a.clamp_starts(clamped, sd);
+                Some(a)
+            }
+            _ => None,
+        };
         let request = SampleRequest {
             context,
-            start_states: Some(starts),
+            start_states: Some(match turned {
+                Some(_) => &self.starts[..n * sd],
+                None => starts,
+            }),
         };
         sample(
             &mut self.engine,
@@ -227,6 +275,67 @@ impl<E: DenoiserEngine> SegmentSampler for DiffusionSegmentSampler<'_, E> {
             out,
         )
         .map_err(SegmentModelError::Sample)?;
+        if let Some(a) = turned {
+            a.turn_back(out, starts, &self.starts[..n * sd], dims);
+        }
         Ok(())
+    }
+}
+
+/// An angle the task's physics does not depend on, and the angles the model knows it at
+/// ([`DiffusionSegmentSampler::set_invariant_angle`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct InvariantAngle {
+    /// State column of the angle's `cos` (its `sin` follows).
+    pub cos_column: usize,
+    /// The smallest start angle the model is asked about (radians).
+    pub lo: f32,
+    /// The largest start angle the model is asked about (radians).
+    pub hi: f32,
+}
+
+impl InvariantAngle {
+    /// Move the angle of every start in `starts` (rows of `state_dim`) into `[lo, hi]`.
+    pub fn clamp_starts(&self, starts: &mut [f32], state_dim: usize) {
+        let c = self.cos_column;
+        for s in starts.chunks_mut(state_dim) {
+            let a = libm::atan2f(s[c + 1], s[c]);
+            let k = a.clamp(self.lo, self.hi);
+            if k != a {
+                s[c] = libm::cosf(k);
+                s[c + 1] = libm::sinf(k);
+            }
+        }
+    }
+
+    /// Turn every row's angle of each segment in `out`, sampled from `clamped` (the starts
+    /// after [`Self::clamp_starts`]), by its start's angle in `starts` minus the clamped one,
+    /// and put the start's exact `(cos, sin)` back into row 0.
+    pub fn turn_back(&self, out: &mut [f32], starts: &[f32], clamped: &[f32], dims: &SegmentDims) {
+        let c = self.cos_column;
+        let d = dims.dim();
+        let sd = dims.state_dim;
+        for ((seg, start), k) in out
+            .chunks_mut(dims.floats())
+            .zip(starts.chunks(sd))
+            .zip(clamped.chunks(sd))
+        {
+            let (cs, ss) = (start[c], start[c + 1]);
+            let (ck, sk) = (k[c], k[c + 1]);
+            if (cs, ss) == (ck, sk) {
+                continue;
+            }
+            // The rotation from the clamped angle to the start's.
+            let n = libm::sqrtf((cs * cs + ss * ss) * (ck * ck + sk * sk)).max(f32::MIN_POSITIVE);
+            let c0 = (cs * ck + ss * sk) / n;
+            let s0 = (ss * ck - cs * sk) / n;
+            for row in seg.chunks_mut(d) {
+                let (cr, sr) = (row[c], row[c + 1]);
+                row[c] = cr * c0 - sr * s0;
+                row[c + 1] = sr * c0 + cr * s0;
+            }
+            seg[c] = cs;
+            seg[c + 1] = ss;
+        }
     }
 }
