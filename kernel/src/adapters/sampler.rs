@@ -339,3 +339,59 @@ impl InvariantAngle {
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    extern crate std;
+    use super::*;
+    use std::vec::Vec;
+
+    fn yaw(row: &[f32], c: usize) -> f32 {
+        libm::atan2f(row[c + 1], row[c])
+    }
+
+    #[test]
+    fn an_invariant_angle_is_clamped_for_the_model_and_turned_back() {
+        let dims = SegmentDims {
+            horizon: 2,
+            state_dim: 4,
+            action_dim: 1,
+            fingers: 1,
+        };
+        let a = InvariantAngle {
+            cos_column: 2,
+            lo: -0.6,
+            hi: 0.0,
+        };
+        let row = |q: f32, y: f32| [q, 0.5, libm::cosf(y), libm::sinf(y), 0.0];
+        // Two starts: one inside [lo, hi], one below it.
+        let starts: Vec<f32> = [row(0.1, -0.3), row(0.2, -1.4)]
+            .iter()
+            .flat_map(|r| r[..4].to_vec())
+            .collect();
+        let mut clamped = starts.clone();
+        a.clamp_starts(&mut clamped, 4);
+        assert_eq!(clamped[..4], starts[..4], "inside the range nothing moves");
+        assert!((yaw(&clamped[4..], 2) - -0.6).abs() < 1e-6);
+        assert_eq!(clamped[4..6], starts[4..6], "only the angle moves");
+        // What the model would return from the clamped starts: row 1 turned by −0.3 more.
+        let mut out: Vec<f32> = [(0.1, -0.3), (0.2, -0.6)]
+            .iter()
+            .flat_map(|&(q, y)| {
+                let mut seg = row(q, y).to_vec();
+                seg.extend(row(q, y - 0.3));
+                seg
+            })
+            .collect();
+        let before = out.clone();
+        a.turn_back(&mut out, &starts, &clamped, &dims);
+        assert_eq!(
+            out[..10],
+            before[..10],
+            "an unclamped segment is left alone"
+        );
+        let seg = &out[10..];
+        assert_eq!(seg[..4], starts[4..8], "row 0 is exactly the start");
+        assert!((yaw(&seg[5..], 2) - (-1.4 - 0.3)).abs() < 1e-5);
+    }
+}
