@@ -332,8 +332,9 @@ fn sample_like(
         .chunks_exact(td)
         .flat_map(|t| t[..sd].iter().copied())
         .collect();
-    // As the planner samples: with the task's symmetry (the screwdriver's yaw).
-    let invariant = dips_kernel::session::invariant_angle(task);
+    // The model as trained, at the data's own start states (the planner's sampler also uses
+    // the screwdriver's yaw symmetry, which leaves starts inside the data's yaws alone).
+    let invariant = None;
     sample_trajectories(
         engine,
         config,
