@@ -7,7 +7,7 @@
 # Every episode's result.json stays under $WORK/<task>/episodes (not committed); the tables,
 # results.json and plots are copied to docs/results/<task>/. Resumable: rerun after a kill.
 # Environment: WORK (default target/eval-work), TRIALS (default 10), BUDGET (default 10),
-# METHODS (default: all), TASKS (default: card screwdriver).
+# METHODS (default: all), TASKS (default: card screwdriver), JOBS (episodes at once, default 1).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 WORK=${WORK:-target/eval-work}
@@ -17,7 +17,9 @@ cargo build --release -p dips-cli
 DIPS=target/release/dips
 for task in ${TASKS:-card screwdriver}; do
   out="$WORK/$task"
-  args=(eval --task "$task" --trials "$TRIALS" --time-budget-s "$BUDGET" --out "$out")
+  # One episode at a time on every core (model calls split their batch, CSVTO its
+  # particles): the search gets the most expansions out of its time budget.
+  args=(eval --task "$task" --trials "$TRIALS" --time-budget-s "$BUDGET" --jobs "${JOBS:-1}" --out "$out")
   if [[ -n "${METHODS:-}" ]]; then args+=(--methods "$METHODS"); fi
   start=$(date +%s)
   "$DIPS" "${args[@]}"
