@@ -7,7 +7,8 @@
 # Every episode's result.json stays under $WORK/<task>/episodes (not committed); the tables,
 # results.json and plots are copied to docs/results/<task>/. Resumable: rerun after a kill.
 # Environment: WORK (default target/eval-work), TRIALS (default 10), BUDGET (default 10),
-# METHODS (default: all), TASKS (default: card screwdriver), JOBS (episodes at once, default 1).
+# METHODS (default: all), TASKS (default: card screwdriver), JOBS (episodes at once,
+# default 1), SAMPLER (default: the CLI's, ddim:16:1).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 WORK=${WORK:-target/eval-work}
@@ -21,6 +22,7 @@ for task in ${TASKS:-card screwdriver}; do
   # particles): the search gets the most expansions out of its time budget.
   args=(eval --task "$task" --trials "$TRIALS" --time-budget-s "$BUDGET" --jobs "${JOBS:-1}" --out "$out")
   if [[ -n "${METHODS:-}" ]]; then args+=(--methods "$METHODS"); fi
+  if [[ -n "${SAMPLER:-}" ]]; then args+=(--sampler "$SAMPLER"); fi
   start=$(date +%s)
   "$DIPS" "${args[@]}"
   echo "== $task: $(( $(date +%s) - start )) s"
