@@ -174,12 +174,7 @@ pub fn sample_trajectories(
     )
     .map_err(|e| anyhow::anyhow!("sampling failed: {e:?}"))?;
     if let Some(a) = invariant_angle {
-        let seg = dips_kernel::mode::SegmentDims {
-            horizon: dims.horizon,
-            state_dim: dims.state_dim,
-            action_dim: dims.action_dim,
-            fingers: dims.fingers,
-        };
+        let seg = dips_kernel::adapters::segment_dims(dims);
         a.turn_back(&mut out, starts, &canonical, &seg);
     }
     Ok(out)

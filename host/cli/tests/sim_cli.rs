@@ -205,6 +205,19 @@ fn hand_file_is_loaded_at_run_time() {
     std::fs::remove_dir_all(&dir).ok();
 }
 
+/// `dips sim render --scene card [EXTRA..] --trajectory TRAJ --out OUT`.
+fn render_card(extra: &[&str], traj: &Path, out: &Path) -> std::process::Output {
+    dips()
+        .args(["sim", "render", "--scene", "card"])
+        .args(extra)
+        .arg("--trajectory")
+        .arg(traj)
+        .arg("--out")
+        .arg(out)
+        .output()
+        .unwrap()
+}
+
 #[test]
 fn an_empty_trajectory_is_named_as_empty_and_a_bad_step_names_the_range() {
     let dir = tmpdir("empty");
@@ -215,13 +228,7 @@ fn an_empty_trajectory_is_named_as_empty_and_a_bad_step_names_the_range() {
         r#"{"scene":"card","states":[],"valid":[],"contacts":[],"max_penetration":[],"flags":[]}"#,
     )
     .unwrap();
-    let r = dips()
-        .args(["sim", "render", "--scene", "card", "--trajectory"])
-        .arg(&empty)
-        .arg("--out")
-        .arg(dir.join("x.svg"))
-        .output()
-        .unwrap();
+    let r = render_card(&[], &empty, &dir.join("x.svg"));
     assert!(!r.status.success());
     let err = String::from_utf8_lossy(&r.stderr);
     assert!(err.contains("holds no states"), "{err}");
@@ -229,21 +236,7 @@ fn an_empty_trajectory_is_named_as_empty_and_a_bad_step_names_the_range() {
 
     let (o, traj) = run_sim("card", r#"{"dq": [[0,0,0,0,0,0,0,0]]}"#, &dir);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    let r = dips()
-        .args([
-            "sim",
-            "render",
-            "--scene",
-            "card",
-            "--step",
-            "5",
-            "--trajectory",
-        ])
-        .arg(&traj)
-        .arg("--out")
-        .arg(dir.join("y.svg"))
-        .output()
-        .unwrap();
+    let r = render_card(&["--step", "5"], &traj, &dir.join("y.svg"));
     assert!(!r.status.success());
     let err = String::from_utf8_lossy(&r.stderr);
     assert!(

@@ -159,7 +159,12 @@ pub struct Summary {
     pub episode_wall_total_s: f64,
 }
 
-fn read_trial(dir: &Path, method: &str, seed: u64, task: &str) -> anyhow::Result<Option<Trial>> {
+fn read_trial(
+    dir: &Path,
+    method: &str,
+    seed: u64,
+    scene: SceneKind,
+) -> anyhow::Result<Option<Trial>> {
     let ep = episode_dir(dir, method, seed);
     let Ok(text) = std::fs::read_to_string(ep.join(WALL_FILE)) else {
         return Ok(None);
@@ -185,12 +190,10 @@ fn read_trial(dir: &Path, method: &str, seed: u64, task: &str) -> anyhow::Result
         std::fs::read_to_string(&path).with_context(|| format!("reading {}", path.display()))?;
     let r: EpisodeView = serde_json::from_str(&text)
         .with_context(|| format!("{} is not an episode result", path.display()))?;
-    let outcome = match task {
-        "screwdriver" => r.final_yaw,
-        _ => r.final_distance_m.map(|d| d * 100.0),
+    let outcome = match scene {
+        SceneKind::Screwdriver => r.final_yaw,
+        SceneKind::Card => r.final_distance_m.map(|d| d * 100.0),
     };
-    let scene = SceneKind::from_name(task)
-        .with_context(|| format!("{}: unknown task {task:?}", path.display()))?;
     Ok(Some(Trial {
         method: r.method,
         seed: r.seed,
@@ -211,11 +214,17 @@ pub fn summarize(dir: &Path) -> anyhow::Result<Summary> {
     let eval =
         read_eval_file(dir)?.with_context(|| format!("{} holds no eval.json", dir.display()))?;
     let task = eval.episode.task.clone();
+    let scene = SceneKind::from_name(&task).with_context(|| {
+        format!(
+            "{}: unknown task {task:?} (expected screwdriver or card)",
+            dir.join("eval.json").display()
+        )
+    })?;
     let mut trials = Vec::new();
     let mut methods = Vec::new();
     for m in &eval.methods {
         let mine: Vec<Trial> = (0..eval.trials)
-            .map(|i| read_trial(dir, m, eval.first_seed + i as u64, &task))
+            .map(|i| read_trial(dir, m, eval.first_seed + i as u64, scene))
             .filter_map(Result::transpose)
             .collect::<anyhow::Result<_>>()?;
         let outcomes: Vec<f64> = mine.iter().filter_map(|t| t.outcome).collect();
