@@ -62,9 +62,13 @@ pub struct EpisodeArgs {
     /// how many expansions fit a time budget.
     #[arg(long)]
     pub threads: Option<usize>,
-    /// Output directory; `result.json` is written there.
+    /// Output directory; `result.json`, the plots over time (`timeline.svg/png`) and
+    /// `report.html` are written there.
     #[arg(long)]
     pub out: PathBuf,
+    /// Also write the episode's animation (`episode.gif`), shown in `report.html`.
+    #[arg(long)]
+    pub render: bool,
 }
 
 /// Run the command.
@@ -131,6 +135,7 @@ pub fn run(args: EpisodeArgs) -> anyhow::Result<()> {
     result
         .write(&args.out)
         .with_context(|| format!("writing {}", args.out.join("result.json").display()))?;
+    write_report(&args.out, args.render)?;
     eprintln!(
         "done: valid {}, {}",
         result.valid,
@@ -140,5 +145,22 @@ pub fn run(args: EpisodeArgs) -> anyhow::Result<()> {
             _ => String::new(),
         }
     );
+    Ok(())
+}
+
+/// Write the report of the episode in `dir` (its `result.json`): plots over time,
+/// `report.html` and, when `animate`, the animation.
+pub fn write_report(dir: &std::path::Path, animate: bool) -> anyhow::Result<()> {
+    let rec = dips_report::Recording::read(&dir.join("result.json"))?;
+    let bar = crate::render::progress_bar(rec.frames.len(), "animation", "frames");
+    if !animate {
+        bar.finish_and_clear();
+    }
+    dips_report::write_episode_report(dir, &rec, animate, &mut |done, _| {
+        bar.set_position(done as u64)
+    })
+    .with_context(|| format!("writing the report in {}", dir.display()))?;
+    bar.finish_and_clear();
+    eprintln!("report: {}", dir.join(dips_report::REPORT_HTML).display());
     Ok(())
 }

@@ -67,12 +67,17 @@ pub struct EvalArgs {
     /// No progress bar.
     #[arg(long)]
     pub quiet: bool,
+    /// Leave the animations out of the report (plots over time and tables are always
+    /// written).
+    #[arg(long)]
+    pub no_animations: bool,
 }
 
 /// Run the command.
 pub fn run(args: EvalArgs) -> anyhow::Result<()> {
     if args.summarize_only {
         let s = summarize(&args.out)?;
+        write_report(&args, &s)?;
         crate::output::line(dips_eval::summary::markdown(&s).trim_end_matches('\n'))?;
         return Ok(());
     }
@@ -127,7 +132,25 @@ pub fn run(args: EvalArgs) -> anyhow::Result<()> {
         report.seconds
     );
     let s = summarize(&args.out)?;
+    write_report(&args, &s)?;
     crate::output::line(dips_eval::summary::markdown(&s).trim_end_matches('\n'))?;
-    eprintln!("wrote {}", args.out.join("results.json").display());
+    eprintln!(
+        "wrote {} and {}",
+        args.out.join("results.json").display(),
+        args.out.join(dips_report::REPORT_HTML).display()
+    );
+    Ok(())
+}
+
+fn write_report(args: &EvalArgs, s: &dips_eval::Summary) -> anyhow::Result<()> {
+    let finished = s.trials.iter().filter(|t| t.error.is_none()).count();
+    let bar = crate::render::progress_bar(finished, "report", "episodes");
+    if args.quiet {
+        bar.set_draw_target(indicatif::ProgressDrawTarget::hidden());
+    }
+    dips_eval::report::write_report(&args.out, s, !args.no_animations, &mut |done, _| {
+        bar.set_position(done as u64)
+    })?;
+    bar.finish_and_clear();
     Ok(())
 }

@@ -14,6 +14,7 @@ pub mod model;
 pub mod model_quality;
 pub mod output;
 pub mod plan;
+pub mod render;
 pub mod sim;
 pub mod train;
 
@@ -40,6 +41,9 @@ pub enum Command {
     /// The paper's experiments: many episodes per method (resumable, sharded), then
     /// results.json, results.md and box plots.
     Eval(eval::EvalArgs),
+    /// Pictures of an episode (`result.json`) or a `dips sim run` trajectory: a GIF
+    /// animation, or one state as SVG/PNG.
+    Render(render::RenderArgs),
     /// One A* planning call from the task's start state with the diffusion models.
     Plan(plan::PlanArgs),
     /// Generate a dataset: CSVTO demos driven by the task's prior (resumable, sharded).
@@ -58,6 +62,7 @@ pub fn main() -> anyhow::Result<()> {
         Command::Episode(args) => episode::run(args),
         Command::Eval(args) => eval::run(args),
         Command::Plan(args) => plan::run(args),
+        Command::Render(args) => render::run(args),
         Command::Datagen(args) => datagen::run(args),
         Command::Train(args) => train::run(args),
     }

@@ -61,13 +61,15 @@ pub struct RunArgs {
     pub log: Option<PathBuf>,
 }
 
-/// `dips sim render` arguments.
+/// `dips sim render` arguments (`dips render` takes the same inputs without `--scene` and
+/// also writes animations).
 #[derive(Debug, Args)]
 pub struct RenderArgs {
     /// Scene: `screwdriver` or `card`.
     #[arg(long)]
     pub scene: String,
-    /// Trajectory written by `dips sim run` (default: draw the initial state).
+    /// Trajectory written by `dips sim run`, or an episode's `result.json` (default: draw
+    /// the initial state).
     #[arg(long)]
     pub trajectory: Option<PathBuf>,
     /// Which state row of the trajectory (default: the last).
@@ -357,55 +359,30 @@ fn run(args: &RunArgs) -> Result<(), SimCliError> {
     Ok(())
 }
 
-fn render_cmd(args: &RenderArgs) -> Result<(), SimCliError> {
+fn render_cmd(args: &RenderArgs) -> anyhow::Result<()> {
     let scene = parse_scene(&args.scene)?;
-    let mut world = World::new(scene);
-    let mut contacts = Vec::new();
-    let mut paths = Vec::new();
-    let mut heading = format!("{} initial state", scene.name());
-    if let Some(path) = &args.trajectory {
-        let p = path.display().to_string();
-        let traj: Trajectory =
-            serde_json::from_str(&read(path)?).map_err(|e| SimCliError::Json {
-                path: p.clone(),
-                message: e.to_string(),
-            })?;
-        if traj.scene != scene.name() {
-            return Err(SimCliError::Json {
-                path: p,
-                message: format!("trajectory is for scene {:?}", traj.scene),
-            });
-        }
-        let len = traj.states.len();
-        if len == 0 {
-            return Err(SimCliError::Empty { path: p });
-        }
-        let step = args.step.unwrap_or(len - 1);
-        let state = traj.states.get(step).ok_or(SimCliError::Step {
-            path: p.clone(),
-            step,
-            len,
-        })?;
-        world.set_state(state).map_err(|e| SimCliError::Json {
-            path: p.clone(),
-            message: e.to_string(),
-        })?;
-        contacts = traj.contacts.get(step).cloned().unwrap_or_default();
-        paths = render::trajectory_paths(&world, &traj.states);
-        heading = format!(
-            "{} state {step}/{}: {:?}  valid={}",
-            scene.name(),
-            len - 1,
-            state
-                .iter()
-                .map(|v| (v * 1e4).round() / 1e4)
-                .collect::<Vec<_>>(),
-            traj.valid.get(step).copied().unwrap_or(true)
+    crate::render::picture_kind(&args.out, false)?;
+    crate::render::check_out_dir(&args.out)?;
+    let Some(path) = &args.trajectory else {
+        let world = World::new(scene);
+        let figure = render::figure(
+            &world,
+            &render::Overlay::default(),
+            &format!("{} initial state", scene.name()),
+            args.size,
         );
+        render::write(&figure, &args.out)?;
+        return Ok(());
+    };
+    let rec = dips_report::Recording::read(path)?;
+    if rec.scene != scene {
+        return Err(SimCliError::Json {
+            path: path.display().to_string(),
+            message: format!("trajectory is for scene {:?}", rec.scene.name()),
+        }
+        .into());
     }
-    let drawing = render::draw_with_paths(&world, &contacts, &paths, &heading);
-    render::write(&drawing, &args.out, args.size).map_err(anyhow::Error::from)?;
-    Ok(())
+    crate::render::draw_state(&rec, args.step, &args.out, args.size)
 }
 
 /// Run `dips sim`.

@@ -7,6 +7,8 @@
 //!   skipped; a kill loses only the episodes in flight), with a progress bar and ETA.
 //! - [`summary`]: `results.json`, the Markdown table and the box plots from whatever episodes
 //!   are in the directory (all shards).
+//! - [`report`]: `report.html` (summary, box plots, one section per method with its median
+//!   trial's animation and plots over time) and every trial's own report.
 //!
 //! Layout of an evaluation directory:
 //!
@@ -15,9 +17,13 @@
 //! DIR/episodes/<method>/seed-<seed>/result.json   one episode (dips episode's format)
 //! DIR/episodes/<method>/seed-<seed>/log.txt       its progress lines
 //! DIR/episodes/<method>/seed-<seed>/wall.json     its wall time
+//! DIR/episodes/<method>/seed-<seed>/report.html, timeline.{svg,png}   its report
+//! DIR/episodes/<method>/seed-<seed>/episode.gif   its animation (each method's median trial)
 //! DIR/results.json, DIR/results.md, DIR/outcome.{svg,png}, DIR/planning.{svg,png}
+//! DIR/report.html                            the page to open in a browser
 //! ```
 
+pub mod report;
 pub mod run;
 pub mod settings;
 pub mod summary;

@@ -80,6 +80,9 @@ pub struct StepLog {
     pub tip_sdf: Vec<f64>,
     /// Whether the object is still valid.
     pub valid: bool,
+    /// The contacts and their forces after the step, where the hand senses them
+    /// ([`Hand::contact_readings`]; the simulated world always does); empty otherwise.
+    pub contacts: Vec<crate::world::ContactReport>,
 }
 
 /// One executed mode.
@@ -351,6 +354,7 @@ pub fn run_mode_observed<H: Hand + ?Sized>(
             state,
             tip_sdf,
             valid,
+            contacts: hand.contact_readings().unwrap_or_default(),
         });
     }
     let end_state = hand_state(hand);

@@ -37,6 +37,11 @@ pub trait Hand {
     /// [`Hand::object_pose`]. (The simulated world's solver details, [`StepReport`], come
     /// from the world itself: [`World::step_targets`], or [`Recorder::step_world`].)
     fn command(&mut self, targets: &HandJoints) -> Result<(), HandError>;
+    /// The contacts with their forces after the last command, where the hand can sense them
+    /// (tactile fingertips, or the simulated world's solver); `None` where it cannot.
+    fn contact_readings(&self) -> Option<Vec<crate::world::ContactReport>> {
+        None
+    }
 }
 
 /// Errors from hand I/O, recording and replay.
@@ -96,6 +101,10 @@ impl Hand for World {
     fn command(&mut self, targets: &HandJoints) -> Result<(), HandError> {
         self.step_targets(targets)?;
         Ok(())
+    }
+
+    fn contact_readings(&self) -> Option<Vec<crate::world::ContactReport>> {
+        Some(self.last_contacts().to_vec())
     }
 }
 
@@ -245,6 +254,10 @@ impl<H: Hand> Hand for Recorder<H> {
     fn command(&mut self, targets: &HandJoints) -> Result<(), HandError> {
         self.inner.command(targets)?;
         self.log_step(targets, None)
+    }
+
+    fn contact_readings(&self) -> Option<Vec<crate::world::ContactReport>> {
+        self.inner.contact_readings()
     }
 }
 

@@ -1,0 +1,190 @@
+//! `report.html` of an evaluation directory: the summary table and box plots, then one
+//! section per method with its median trial's animation and plots over time and a table of
+//! every trial linking to that trial's own report (written beside its `result.json`).
+
+use std::path::Path;
+
+use anyhow::Context;
+use dips_report::html::{Cell, Page};
+use dips_report::{EPISODE_GIF, REPORT_HTML, Recording, TIMELINE_SVG};
+
+use crate::settings::episode_dir;
+use crate::summary::{MethodSummary, Summary, Trial};
+
+/// The trial whose outcome is the method's median (the lower middle one for an even count).
+pub fn median_trial<'a>(s: &'a Summary, method: &str) -> Option<&'a Trial> {
+    let mut mine: Vec<&Trial> = s
+        .trials
+        .iter()
+        .filter(|t| t.method == method && t.outcome.is_some_and(f64::is_finite))
+        .collect();
+    mine.sort_by(|a, b| {
+        a.outcome
+            .unwrap_or(f64::NAN)
+            .total_cmp(&b.outcome.unwrap_or(f64::NAN))
+            .then(a.seed.cmp(&b.seed))
+    });
+    mine.get(mine.len().saturating_sub(1) / 2).copied()
+}
+
+fn rel(method: &str, seed: u64, file: &str) -> String {
+    format!("episodes/{method}/seed-{seed}/{file}")
+}
+
+fn stats_cell(v: Option<crate::summary::Stats>, digits: usize, spread: bool) -> Cell {
+    match v {
+        Some(s) if spread => format!("{:.digits$} ± {:.digits$}", s.mean, s.std).into(),
+        Some(s) => format!("{:.digits$}", s.median).into(),
+        None => "–".into(),
+    }
+}
+
+fn summary_row(m: &MethodSummary, digits: usize) -> Vec<Cell> {
+    vec![
+        Cell::Link(m.method.clone(), format!("#method-{}", m.method)),
+        format!("{}", m.trials).into(),
+        format!("{}/{}", m.valid, m.trials).into(),
+        format!("{}/{}", m.success, m.trials).into(),
+        stats_cell(m.outcome, digits, true),
+        stats_cell(m.outcome, digits, false),
+        match m.planning_s {
+            Some(p) => format!("{:.2} / {:.2}", p.median, p.p90).into(),
+            None => "–".into(),
+        },
+        stats_cell(m.csvto_step_s, 3, false),
+    ]
+}
+
+/// Write every finished trial's episode report (plots over time and its page; the
+/// animation for each method's median trial when `animate`) and the evaluation's
+/// `report.html`. `progress(done, total)` after each trial.
+pub fn write_report(
+    dir: &Path,
+    s: &Summary,
+    animate: bool,
+    progress: &mut dyn FnMut(usize, usize),
+) -> anyhow::Result<()> {
+    let screwdriver = s.task == "screwdriver";
+    let digits = if screwdriver { 3 } else { 2 };
+    let medians: Vec<(String, u64)> = s
+        .methods
+        .iter()
+        .filter_map(|m| median_trial(s, &m.method).map(|t| (m.method.clone(), t.seed)))
+        .collect();
+    let finished: Vec<&Trial> = s.trials.iter().filter(|t| t.error.is_none()).collect();
+    for (k, t) in finished.iter().enumerate() {
+        let ep = episode_dir(dir, &t.method, t.seed);
+        let rec = Recording::read(&ep.join("result.json"))?;
+        let median = medians.contains(&(t.method.clone(), t.seed));
+        dips_report::write_episode_report(&ep, &rec, animate && median, &mut |_, _| {})
+            .with_context(|| format!("writing the report of {}", ep.display()))?;
+        progress(k + 1, finished.len());
+    }
+    let e = &s.eval.episode;
+    let mut page = Page::new(&format!("dips eval: {}", s.task));
+    page.paragraph(&format!(
+        "{} methods × {} trials on seeds {}…{}; sampler {}, planning budget {} s per call, \
+         engine {}. Outcome: {}; lower is better.",
+        s.methods.len(),
+        s.eval.trials,
+        s.eval.first_seed,
+        s.eval.first_seed + s.eval.trials.saturating_sub(1) as u64,
+        e.sampler,
+        e.time_budget_s,
+        e.engine,
+        s.outcome
+    ));
+    page.links(&[
+        ("results.md".into(), "results.md".into()),
+        ("results.json".into(), "results.json".into()),
+        ("eval.json".into(), "eval.json".into()),
+    ]);
+    let unit = if screwdriver { "rad" } else { "cm" };
+    let what = if screwdriver {
+        "final yaw"
+    } else {
+        "distance to goal"
+    };
+    page.heading(2, "summary", "Summary").table(
+        &[
+            "method",
+            "trials",
+            "valid",
+            "success",
+            &format!("{what} mean ± std ({unit})"),
+            &format!("median ({unit})"),
+            "planning median / p90 (s)",
+            "CSVTO step median (s)",
+        ],
+        &s.methods
+            .iter()
+            .map(|m| summary_row(m, digits))
+            .collect::<Vec<_>>(),
+    );
+    for (file, alt) in [
+        ("outcome.svg", "box plot of each method's per-trial outcome"),
+        (
+            "planning.svg",
+            "box plot of each method's planning-call times",
+        ),
+    ] {
+        if dir.join(file).exists() {
+            page.image(file, alt);
+        }
+    }
+    for m in &s.methods {
+        page.heading(2, &format!("method-{}", m.method), &m.method);
+        let mine: Vec<&Trial> = s.trials.iter().filter(|t| t.method == m.method).collect();
+        if let Some(t) = median_trial(s, &m.method) {
+            page.paragraph(&format!(
+                "Median trial: seed {} ({what} {:.digits$} {unit}).",
+                t.seed,
+                t.outcome.unwrap_or(f64::NAN)
+            ));
+            let gif = rel(&m.method, t.seed, EPISODE_GIF);
+            if dir.join(&gif).exists() {
+                page.image(&gif, &format!("animation of {} seed {}", m.method, t.seed));
+            }
+            let timeline = rel(&m.method, t.seed, TIMELINE_SVG);
+            if dir.join(&timeline).exists() {
+                page.image(
+                    &timeline,
+                    &format!("plots over time of {} seed {}", m.method, t.seed),
+                );
+            }
+        }
+        let rows: Vec<Vec<Cell>> = mine
+            .iter()
+            .map(|t| {
+                let report = rel(&t.method, t.seed, REPORT_HTML);
+                vec![
+                    format!("{}", t.seed).into(),
+                    t.outcome
+                        .map_or_else(|| "–".to_string(), |o| format!("{o:.digits$}"))
+                        .into(),
+                    (if t.valid { "yes" } else { "no" }).into(),
+                    (if t.success { "yes" } else { "no" }).into(),
+                    t.modes.join(" → ").into(),
+                    if dir.join(&report).exists() {
+                        Cell::Link("report".into(), report)
+                    } else {
+                        t.error.clone().unwrap_or_else(|| "–".into()).into()
+                    },
+                ]
+            })
+            .collect();
+        page.table(
+            &[
+                "seed",
+                &format!("{what} ({unit})"),
+                "valid",
+                "success",
+                "executed modes",
+                "episode",
+            ],
+            &rows,
+        );
+    }
+    dips_report::write_file(&dir.join(REPORT_HTML), page.render().as_bytes())?;
+    Ok(())
+}
