@@ -67,10 +67,14 @@ pub struct EvalArgs {
     /// No progress bar.
     #[arg(long)]
     pub quiet: bool,
-    /// Leave the animations out of the report (plots over time and tables are always
-    /// written).
-    #[arg(long)]
-    pub no_animations: bool,
+    /// Methods whose median trial is animated in `report.html` (comma-separated; default:
+    /// every method; `none`: no animation).
+    #[arg(long, value_delimiter = ',')]
+    pub animate: Option<Vec<String>>,
+    /// Which trials get their own report beside their `result.json`: `all`, or `medians`
+    /// (each method's median trial; a small report to publish).
+    #[arg(long, default_value = "all", value_parser = ["all", "medians"])]
+    pub episode_reports: String,
 }
 
 /// Run the command.
@@ -94,6 +98,19 @@ pub fn run(args: EvalArgs) -> anyhow::Result<()> {
             .collect::<anyhow::Result<Vec<_>>>()?,
         None => Method::ALL.to_vec(),
     };
+    if let Some(list) = &args.animate {
+        // Checked before the episodes run, not after.
+        let names: Vec<&str> = methods.iter().map(|m| m.name()).collect();
+        if let Some(bad) = list
+            .iter()
+            .find(|m| *m != "none" && !names.contains(&m.as_str()))
+        {
+            anyhow::bail!(
+                "--animate {bad}: not a method of this evaluation (its methods: {}; or none)",
+                names.join(", ")
+            );
+        }
+    }
     let cores = dips_host::planning::default_threads();
     let jobs = args.jobs.unwrap_or(cores);
     let model_threads = match args.model_threads {
@@ -143,12 +160,37 @@ pub fn run(args: EvalArgs) -> anyhow::Result<()> {
 }
 
 fn write_report(args: &EvalArgs, s: &dips_eval::Summary) -> anyhow::Result<()> {
+    use dips_eval::report::{EpisodeReports, ReportOptions};
+    let methods: Vec<String> = s.methods.iter().map(|m| m.method.clone()).collect();
+    let animate = match &args.animate {
+        None => methods.clone(),
+        Some(list) if list.len() == 1 && list[0] == "none" => Vec::new(),
+        Some(list) => {
+            for m in list {
+                if !methods.contains(m) {
+                    anyhow::bail!(
+                        "--animate {m}: not a method of this evaluation (its methods: {}; or none)",
+                        methods.join(", ")
+                    );
+                }
+            }
+            list.clone()
+        }
+    };
+    let options = ReportOptions {
+        episodes: if args.episode_reports == "medians" {
+            EpisodeReports::Medians
+        } else {
+            EpisodeReports::All
+        },
+        animate,
+    };
     let finished = s.trials.iter().filter(|t| t.error.is_none()).count();
     let bar = crate::render::progress_bar(finished, "report", "episodes");
     if args.quiet {
         bar.set_draw_target(indicatif::ProgressDrawTarget::hidden());
     }
-    dips_eval::report::write_report(&args.out, s, !args.no_animations, &mut |done, _| {
+    dips_eval::report::write_report(&args.out, s, &options, &mut |done, _| {
         bar.set_position(done as u64)
     })?;
     bar.finish_and_clear();

@@ -224,3 +224,118 @@ fn a_given_mode_sequence_writes_result_json() {
     assert!(String::from_utf8_lossy(&out.stderr).contains("turn step 12/12"));
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// Every file `page` references exists beside it, and nothing points at the network.
+fn assert_assets_exist(page: &std::path::Path) -> String {
+    let html = std::fs::read_to_string(page).unwrap();
+    assert!(html.starts_with("<!DOCTYPE html>"), "{}", page.display());
+    let files = dips_report::html::referenced_files(&html);
+    assert!(!files.is_empty());
+    for f in files.iter().filter(|f| !f.starts_with('#')) {
+        assert!(!f.contains("://"), "network reference {f}");
+        let p = page.parent().unwrap().join(f);
+        assert!(
+            p.is_file(),
+            "{} references missing {}",
+            page.display(),
+            p.display()
+        );
+    }
+    html
+}
+
+#[test]
+fn a_rendered_episode_writes_an_animation_plots_and_a_report_whose_assets_exist() {
+    let dir = temp_dir("render");
+    let out = dips()
+        .args(["episode", "--task", "card", "--method", "csvto-sampled"])
+        .args(["--modes", "index", "--seed", "5", "--render", "--out"])
+        .arg(&dir)
+        .output()
+        .expect("run dips");
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let html = assert_assets_exist(&dir.join("report.html"));
+    for section in [
+        "Animation",
+        "Plots over time",
+        "Executed modes",
+        "card · csvto-sampled · seed 5",
+    ] {
+        assert!(html.contains(section), "report lacks {section}");
+    }
+    let gif = std::fs::read(dir.join("episode.gif")).unwrap();
+    assert_eq!(&gif[..6], b"GIF89a");
+    let svg = std::fs::read_to_string(dir.join("timeline.svg")).unwrap();
+    for text in [
+        "card y",
+        "mode goal",
+        "force (N)",
+        "clearance δ",
+        "CSVTO solve",
+        "index",
+    ] {
+        assert!(svg.contains(text), "timeline lacks {text}");
+    }
+    // Every step logs the world's contacts, and the pushing finger pushed.
+    let v: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("result.json")).unwrap()).unwrap();
+    let steps = v["mode_runs"][0]["steps"].as_array().unwrap();
+    assert!(steps.iter().all(|s| s["contacts"].is_array()));
+    assert!(
+        steps
+            .iter()
+            .flat_map(|s| s["contacts"].as_array().unwrap())
+            .any(|c| c["finger"] == "index"),
+        "the index never touched the card"
+    );
+    // `dips render` draws any state of it, or the whole of it; `sim render` reads it too.
+    let result = dir.join("result.json");
+    for (extra, name, ok) in [
+        (vec![], "again.gif", true),
+        (vec!["--step", "2"], "two.png", true),
+        (vec![], "last.svg", true),
+        (vec!["--step", "99"], "bad.png", false),
+        (vec![], "bad.txt", false),
+    ] {
+        let o = dips()
+            .args(["render", "--input"])
+            .arg(&result)
+            .args(&extra)
+            .arg("--out")
+            .arg(dir.join(name))
+            .output()
+            .unwrap();
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.success(), ok, "{name}: {err}");
+        if !ok {
+            assert!(
+                err.contains("out of range") || err.contains(".gif (animation), .svg or .png"),
+                "{err}"
+            );
+        }
+    }
+    let svg = std::fs::read_to_string(dir.join("last.svg")).unwrap();
+    for text in [
+        "front (x–z)",
+        "top (x–y)",
+        "x (cm)",
+        "index",
+        "task goal",
+        "mode 1/1",
+    ] {
+        assert!(svg.contains(text), "frame lacks {text}");
+    }
+    let o = dips()
+        .args(["sim", "render", "--scene", "card", "--trajectory"])
+        .arg(&result)
+        .arg("--out")
+        .arg(dir.join("sim.png"))
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let _ = std::fs::remove_dir_all(&dir);
+}

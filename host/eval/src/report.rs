@@ -55,13 +55,32 @@ fn summary_row(m: &MethodSummary, digits: usize) -> Vec<Cell> {
     ]
 }
 
-/// Write every finished trial's episode report (plots over time and its page; the
-/// animation for each method's median trial when `animate`) and the evaluation's
-/// `report.html`. `progress(done, total)` after each trial.
+/// Which trials get their own report (plots over time and a page beside `result.json`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum EpisodeReports {
+    /// Every finished trial.
+    All,
+    /// Each method's median trial only (a small report to copy or publish).
+    Medians,
+}
+
+/// What goes into an evaluation's report.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct ReportOptions {
+    /// Which trials get their own report.
+    pub episodes: EpisodeReports,
+    /// Methods whose median trial is animated (empty: none).
+    pub animate: Vec<String>,
+}
+
+/// Write the chosen trials' episode reports (plots over time and their page; the animation
+/// for the median trial of each method in `options.animate`) and the evaluation's
+/// `report.html`, which links a trial's report where one exists. `progress(done, total)`
+/// after each trial.
 pub fn write_report(
     dir: &Path,
     s: &Summary,
-    animate: bool,
+    options: &ReportOptions,
     progress: &mut dyn FnMut(usize, usize),
 ) -> anyhow::Result<()> {
     let screwdriver = s.task == "screwdriver";
@@ -71,14 +90,22 @@ pub fn write_report(
         .iter()
         .filter_map(|m| median_trial(s, &m.method).map(|t| (m.method.clone(), t.seed)))
         .collect();
-    let finished: Vec<&Trial> = s.trials.iter().filter(|t| t.error.is_none()).collect();
-    for (k, t) in finished.iter().enumerate() {
+    let chosen: Vec<&Trial> = s
+        .trials
+        .iter()
+        .filter(|t| t.error.is_none())
+        .filter(|t| {
+            options.episodes == EpisodeReports::All || medians.contains(&(t.method.clone(), t.seed))
+        })
+        .collect();
+    for (k, t) in chosen.iter().enumerate() {
         let ep = episode_dir(dir, &t.method, t.seed);
         let rec = Recording::read(&ep.join("result.json"))?;
-        let median = medians.contains(&(t.method.clone(), t.seed));
-        dips_report::write_episode_report(&ep, &rec, animate && median, &mut |_, _| {})
+        let animate =
+            medians.contains(&(t.method.clone(), t.seed)) && options.animate.contains(&t.method);
+        dips_report::write_episode_report(&ep, &rec, animate, &mut |_, _| {})
             .with_context(|| format!("writing the report of {}", ep.display()))?;
-        progress(k + 1, finished.len());
+        progress(k + 1, chosen.len());
     }
     let e = &s.eval.episode;
     let mut page = Page::new(&format!("dips eval: {}", s.task));

@@ -5,6 +5,7 @@
 use std::path::PathBuf;
 
 use dips_datagen::Shard;
+use dips_eval::report::{EpisodeReports, ReportOptions, median_trial, write_report};
 use dips_eval::{EvalSettings, run_eval, summarize};
 use dips_host::online::{Method, OnlineSettings};
 use dips_host::planning::{default_models_dir, parse_sampler};
@@ -74,6 +75,41 @@ fn a_killed_eval_resumes_without_redoing_episodes() {
     }
     let md = std::fs::read_to_string(dir.join("results.md")).unwrap();
     assert!(md.contains("| csvto-sampled | 3 |"), "{md}");
+
+    // The report: summary, box plots, one section per method with its median trial animated,
+    // every trial's own report linked; every file it references exists beside it.
+    let options = ReportOptions {
+        episodes: EpisodeReports::All,
+        animate: vec!["csvto-sampled".into()],
+    };
+    let mut calls = 0;
+    write_report(&dir, &summary, &options, &mut |_, _| calls += 1).unwrap();
+    assert_eq!(calls, 3);
+    let html = std::fs::read_to_string(dir.join("report.html")).unwrap();
+    for part in [
+        "<h2 id=\"summary\">",
+        "<h2 id=\"method-csvto-sampled\">",
+        "outcome.svg",
+        "episode.gif",
+    ] {
+        assert!(html.contains(part), "report lacks {part}");
+    }
+    let median = median_trial(&summary, "csvto-sampled").unwrap().seed;
+    let files = dips_report::html::referenced_files(&html);
+    assert!(files.contains(&format!("episodes/csvto-sampled/seed-{median}/episode.gif")));
+    for seed in [1000, 1001, 1002] {
+        assert!(files.contains(&format!("episodes/csvto-sampled/seed-{seed}/report.html")));
+    }
+    for f in files.iter().filter(|f| !f.starts_with('#')) {
+        assert!(dir.join(f).is_file(), "report.html references missing {f}");
+        if f.ends_with("report.html") {
+            let page = std::fs::read_to_string(dir.join(f)).unwrap();
+            let base = dir.join(f).parent().unwrap().to_path_buf();
+            for g in dips_report::html::referenced_files(&page) {
+                assert!(base.join(&g).is_file(), "{f} references missing {g}");
+            }
+        }
+    }
 
     // A third run finds nothing to do.
     let third = run_eval(&s, &dir).unwrap();

@@ -1,10 +1,12 @@
 //! GIF animations of RGB frames, encoded with the `gif` crate (image-rs; pure Rust, no
 //! system codec, plays in every browser without a plugin or a network).
 //!
-//! Frames are mapped onto one fixed global palette (a 6 × 6 × 6 colour cube plus a 40-step
+//! Frames are mapped onto one fixed global palette (a 6 × 6 × 6 colour cube plus a 39-step
 //! grey ramp) instead of a palette learnt per frame: our figures are line drawings in a few
 //! flat colours, the mapping is a few operations per pixel, and colours do not flicker between
-//! frames.
+//! frames. After the first frame, pixels that did not change are written as the palette's
+//! last entry, transparent over the kept previous frame, which LZW packs into long runs
+//! (an episode's GIF shrinks about threefold).
 
 use std::io::Write;
 
@@ -16,9 +18,12 @@ fn gif_err<E: std::fmt::Display>(e: E) -> PlotError {
     PlotError::Gif(e.to_string())
 }
 
-const GREYS: usize = 40;
+const GREYS: usize = 39;
+/// The palette entry that marks "unchanged since the last frame".
+const UNCHANGED: u8 = 255;
 
-/// The global palette: 216 cube colours, then 40 greys (black to white).
+/// The global palette: 216 cube colours, then 39 greys (black to white), then the
+/// transparent entry.
 fn palette() -> Vec<u8> {
     let mut p = Vec::with_capacity(256 * 3);
     for r in 0..6u8 {
@@ -32,6 +37,7 @@ fn palette() -> Vec<u8> {
         let v = (k * 255 / (GREYS - 1)) as u8;
         p.extend_from_slice(&[v, v, v]);
     }
+    p.extend_from_slice(&[255, 255, 255]);
     p
 }
 
@@ -53,6 +59,7 @@ pub struct GifWriter<W: Write> {
     encoder: Encoder<W>,
     width: u16,
     height: u16,
+    previous: Option<Vec<u8>>,
 }
 
 impl<W: Write> std::fmt::Debug for GifWriter<W> {
@@ -75,6 +82,7 @@ impl<W: Write> GifWriter<W> {
             encoder,
             width: w,
             height: h,
+            previous: None,
         })
     }
 
@@ -92,9 +100,23 @@ impl<W: Write> GifWriter<W> {
             )));
         }
         let indices: Vec<u8> = rgb.chunks_exact(3).map(index_of).collect();
-        let mut frame = Frame::from_indexed_pixels(self.width, self.height, indices, None);
+        let (pixels, transparent) = match &self.previous {
+            Some(prev) => (
+                indices
+                    .iter()
+                    .zip(prev)
+                    .map(|(&i, &p)| if i == p { UNCHANGED } else { i })
+                    .collect(),
+                Some(UNCHANGED),
+            ),
+            None => (indices.clone(), None),
+        };
+        let mut frame = Frame::from_indexed_pixels(self.width, self.height, pixels, transparent);
         frame.delay = delay_cs;
-        self.encoder.write_frame(&frame).map_err(gif_err)
+        frame.dispose = gif::DisposalMethod::Keep;
+        self.encoder.write_frame(&frame).map_err(gif_err)?;
+        self.previous = Some(indices);
+        Ok(())
     }
 
     /// Finish the file and hand back the writer.
@@ -112,7 +134,8 @@ mod tests {
         let (w, h) = (20u32, 10u32);
         let mut out = GifWriter::new(Vec::new(), w, h).unwrap();
         let red: Vec<u8> = [255, 0, 0].repeat((w * h) as usize);
-        let grey: Vec<u8> = [128, 128, 128].repeat((w * h) as usize);
+        let mut grey: Vec<u8> = [128, 128, 128].repeat((w * h) as usize);
+        grey[..3].copy_from_slice(&[255, 0, 0]); // unchanged pixel: kept from frame 1
         out.frame(&red, 50).unwrap();
         out.frame(&grey, 20).unwrap();
         assert!(
@@ -128,11 +151,14 @@ mod tests {
         assert_eq!(&f1.buffer[..4], &[255, 0, 0, 255]);
         let f2 = dec.read_next_frame().unwrap().unwrap();
         assert_eq!(f2.delay, 20);
-        let g = f2.buffer[0];
+        let g = f2.buffer[4];
         assert!(
-            (i32::from(g) - 128).abs() <= 4 && f2.buffer[1] == g,
+            (i32::from(g) - 128).abs() <= 4 && f2.buffer[5] == g,
             "grey kept: {g}"
         );
+        // The unchanged pixel is transparent in frame 2 (the decoder does not composite).
+        assert_eq!(f2.transparent, Some(UNCHANGED));
+        assert_eq!(f2.buffer[3], 0, "unchanged pixel is transparent");
         assert!(dec.read_next_frame().unwrap().is_none());
     }
 }
