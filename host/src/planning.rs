@@ -37,6 +37,55 @@ impl Clock for StdClock {
     }
 }
 
+/// A [`StdClock`] that also reports progress: every `interval` of a planning call it hands
+/// `report` the seconds so far and how often the planner has read the clock. With a time
+/// budget the planner reads it once before every expansion, so the count is the expansions
+/// started (plus one at the start).
+pub struct ProgressClock<'a> {
+    clock: StdClock,
+    interval_us: u64,
+    next_us: u64,
+    reads: u64,
+    report: &'a mut dyn FnMut(f64, u64),
+}
+
+impl std::fmt::Debug for ProgressClock<'_> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("ProgressClock")
+            .field("clock", &self.clock)
+            .field("reads", &self.reads)
+            .finish_non_exhaustive()
+    }
+}
+
+impl<'a> ProgressClock<'a> {
+    /// A clock starting now that calls `report(seconds, reads)` every `interval`.
+    pub fn start(interval: std::time::Duration, report: &'a mut dyn FnMut(f64, u64)) -> Self {
+        let interval_us = u64::try_from(interval.as_micros())
+            .unwrap_or(u64::MAX)
+            .max(1);
+        Self {
+            clock: StdClock::start(),
+            interval_us,
+            next_us: interval_us,
+            reads: 0,
+            report,
+        }
+    }
+}
+
+impl Clock for ProgressClock<'_> {
+    fn now_us(&mut self) -> u64 {
+        let now = self.clock.now_us();
+        self.reads += 1;
+        if now >= self.next_us {
+            (self.report)(now as f64 * 1e-6, self.reads);
+            self.next_us = now + self.interval_us;
+        }
+        now
+    }
+}
+
 /// Parse a sampler name: `ddpm` (the paper's ancestral DDPM over every training step) or
 /// `ddim:STEPS[:ETA]` (DDIM over STEPS ≥ 1 strided steps; η = 0, the default, is
 /// deterministic, η = 1 is ancestral).

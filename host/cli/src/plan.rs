@@ -19,7 +19,7 @@ use dips_kernel::session::PlanSpec;
 use dips_onnx::EngineKind;
 use serde_json::json;
 
-use dips_host::planning::{Models, PaperSession, StdClock, models_dir};
+use dips_host::planning::{Models, PaperSession, ProgressClock, models_dir};
 use dips_host::problems::contract::contract_state;
 use dips_host::scenes::SceneKind;
 use dips_host::world::World;
@@ -159,7 +159,18 @@ pub fn run(args: PlanArgs) -> anyhow::Result<()> {
     };
     let mut session = PaperSession::new(models);
     let t0 = Instant::now();
-    let report = session.plan(&spec, &mut StdClock(t0))?;
+    // A line on stderr every second of a long call (stdout stays the result).
+    let budget = args.time_budget_s;
+    let mut tell = |s: f64, reads: u64| {
+        eprintln!(
+            "planning: {s:.0} s, {} expansions started (budget {budget} s)",
+            reads.saturating_sub(1)
+        );
+    };
+    let report = session.plan(
+        &spec,
+        &mut ProgressClock::start(std::time::Duration::from_secs(1), &mut tell),
+    )?;
     let planning_s = t0.elapsed().as_secs_f64();
     let names: Vec<&str> = report
         .modes

@@ -177,3 +177,38 @@ fn goals_beyond_a_half_turn_plan_modes() {
         );
     }
 }
+
+#[test]
+fn a_call_over_a_second_reports_progress_on_stderr_and_keeps_stdout_the_result() {
+    // The shipped card models over a 2.5 s budget: lines on stderr while it runs.
+    let out = Command::new(env!("CARGO_BIN_EXE_dips"))
+        .args([
+            "plan",
+            "--task",
+            "card",
+            "--seed",
+            "1",
+            "--time-budget-s",
+            "2.5",
+            "--json",
+        ])
+        .output()
+        .expect("run dips");
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let err = String::from_utf8_lossy(&out.stderr);
+    let lines: Vec<&str> = err
+        .lines()
+        .filter(|l| l.starts_with("planning: "))
+        .collect();
+    assert!(!lines.is_empty(), "no progress on stderr: {err}");
+    assert!(
+        lines[0].contains("expansions started (budget 2.5 s)"),
+        "{err}"
+    );
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).expect("only JSON on stdout");
+    assert!(v["planning_s"].as_f64().unwrap() >= 1.0);
+}

@@ -427,9 +427,9 @@ impl<const K: usize, const N: usize, const O: usize, const S: usize> Planner<K, 
                 stop = ApproximateReason::NodeBudget;
                 break;
             }
-            if config.time_budget_ms > 0
-                && clock.now_us().saturating_sub(t0) >= u64::from(config.time_budget_ms) * 1000
-            {
+            // Read before every expansion, budget or not: a host clock reports progress from it.
+            let elapsed_us = clock.now_us().saturating_sub(t0);
+            if config.time_budget_ms > 0 && elapsed_us >= u64::from(config.time_budget_ms) * 1000 {
                 stop = ApproximateReason::TimeBudget;
                 break;
             }
