@@ -8,33 +8,11 @@ use dips_host::atomic_write::write_atomic;
 use dips_host::execute::episode::episode_success;
 use dips_host::scenes::SceneKind;
 use dips_plot::{BoxPlot, BoxSeries};
-use serde::{Deserialize, Serialize};
+use dips_report::EpisodeFile;
+use serde::Serialize;
 
 use crate::run::{EpisodeWall, WALL_FILE};
 use crate::settings::{EvalFile, episode_dir, read_eval_file};
-
-/// The fields of an episode's `result.json` the summary reads.
-#[derive(Debug, Clone, Deserialize)]
-pub struct EpisodeView {
-    /// Method name.
-    pub method: String,
-    /// Seed.
-    pub seed: u64,
-    /// Executed modes.
-    pub modes: Vec<String>,
-    /// Final yaw (screwdriver, rad).
-    #[serde(default)]
-    pub final_yaw: Option<f64>,
-    /// Final distance of the card to its goal (m).
-    #[serde(default)]
-    pub final_distance_m: Option<f64>,
-    /// Whether the object stayed valid.
-    pub valid: bool,
-    /// Planning time per call (s).
-    pub planning_s: Vec<f64>,
-    /// CSVTO time per online step (s).
-    pub csvto_step_s: Vec<f64>,
-}
 
 /// One trial in `results.json`.
 #[derive(Debug, Clone, Serialize)]
@@ -188,7 +166,7 @@ fn read_trial(
     let path = ep.join("result.json");
     let text =
         std::fs::read_to_string(&path).with_context(|| format!("reading {}", path.display()))?;
-    let r: EpisodeView = serde_json::from_str(&text)
+    let r: EpisodeFile = serde_json::from_str(&text)
         .with_context(|| format!("{} is not an episode result", path.display()))?;
     let outcome = match scene {
         SceneKind::Screwdriver => r.final_yaw,

@@ -53,7 +53,8 @@ pub struct PlanView {
     pub seconds: f64,
 }
 
-/// An episode's `result.json` (`dips episode`, `dips eval`).
+/// An episode's `result.json` (`dips episode`, `dips eval`): the fields the pictures, the
+/// reports and `dips eval`'s summary read.
 #[derive(Debug, Clone, Deserialize)]
 pub struct EpisodeFile {
     /// Task name.
@@ -81,6 +82,9 @@ pub struct EpisodeFile {
     /// Planning seconds per call.
     #[serde(default)]
     pub planning_s: Vec<f64>,
+    /// CSVTO solve seconds per executed step.
+    #[serde(default)]
+    pub csvto_step_s: Vec<f64>,
     /// The executed modes in detail.
     pub mode_runs: Vec<ModeRunView>,
     /// The planning calls.
