@@ -3,7 +3,9 @@
 #   1. dips datagen   CSVTO demos in the world (both cores per task)
 #   2. dips train     prior.json, denoiser.onnx, discriminator.onnx (one core per task; the
 #                     two tasks train side by side)
-#   3. dips model quality / card   figures on the held-out demos, MODEL_CARD.md
+#   3. dips train --policy   the Diffusion Policy baseline, policy/denoiser.onnx (~18 min
+#                     per task, side by side)
+#   4. dips model quality / card   figures on the held-out demos, MODEL_CARD.md
 # Every step resumes after a kill: rerun the script. About 1 h 40 min on 2 cores
 # (docs/training.md, "Shipped models"). Settings: onnx/models/<task>/settings.json.
 #
@@ -31,6 +33,21 @@ for task in screwdriver card; do
   pids+=($!)
 done
 for p in "${pids[@]}"; do wait "$p"; done
+
+pids=()
+for task in screwdriver card; do
+  echo "== train the diffusion-policy baseline for $task (log: $WORK/logs/policy-$task.log)"
+  "$DIPS" train --policy --task "$task" --data "$WORK/data/$task" \
+    --out "$WORK/models/$task-policy" --settings "onnx/models/$task/policy/settings.json" \
+    --quiet > "$WORK/logs/policy-$task.log" 2>&1 &
+  pids+=($!)
+done
+for p in "${pids[@]}"; do wait "$p"; done
+for task in screwdriver card; do
+  for f in denoiser.onnx train_report.json; do
+    cp "$WORK/models/$task-policy/$f" "onnx/models/$task/policy/$f"
+  done
+done
 
 for task in screwdriver card; do
   out="onnx/models/$task"

@@ -8,6 +8,7 @@ pub mod hand;
 pub mod kinematics;
 pub mod online;
 pub mod planning;
+pub mod policy;
 pub mod problems;
 pub mod quality;
 pub mod render;

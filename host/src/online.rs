@@ -12,6 +12,8 @@
 //!   executed.
 //! - `dips-sampled`: the prior's sequence, CSVTO initialised by diffusion samples.
 //! - `csvto-sampled`: the prior's sequence, CSVTO's default initialisation.
+//! - `diffusion-policy`: the baseline, a diffusion policy on the state alone
+//!   ([`crate::policy`]).
 
 use std::time::Instant;
 
@@ -54,17 +56,20 @@ pub enum Method {
     DipsK1,
     /// One trajectory per node, the best-scored of `k` samples (ablation 5).
     DipsMaxLikelihood,
+    /// The Diffusion Policy baseline: no modes, no search (`crate::policy`).
+    DiffusionPolicy,
 }
 
 impl Method {
     /// Every method, in the paper's order.
-    pub const ALL: [Method; 6] = [
+    pub const ALL: [Method; 7] = [
         Method::Dips,
         Method::DipsSampled,
         Method::CsvtoSampled,
         Method::DipsNoReplan,
         Method::DipsK1,
         Method::DipsMaxLikelihood,
+        Method::DiffusionPolicy,
     ];
 
     /// The `--method` name.
@@ -76,6 +81,7 @@ impl Method {
             Method::DipsNoReplan => "dips-no-replan",
             Method::DipsK1 => "dips-k1",
             Method::DipsMaxLikelihood => "dips-max-likelihood",
+            Method::DiffusionPolicy => "diffusion-policy",
         }
     }
 
@@ -99,7 +105,10 @@ impl Method {
 
     /// Whether the method searches for its modes.
     pub const fn searches(self) -> bool {
-        !matches!(self, Method::DipsSampled | Method::CsvtoSampled)
+        !matches!(
+            self,
+            Method::DipsSampled | Method::CsvtoSampled | Method::DiffusionPolicy
+        )
     }
 }
 
@@ -292,6 +301,33 @@ pub fn run_online<H: Hand + ?Sized>(
     let task = scene.task();
     let model = HandModel::allegro_v4();
     let limit = mode_limit(scene);
+    if method == Method::DiffusionPolicy {
+        if settings.sequence.is_some() {
+            bail!(
+                "method `diffusion-policy` has no contact modes; --modes is for dips-sampled and csvto-sampled"
+            );
+        }
+        let mut models = models.context("method `diffusion-policy` needs its model")?;
+        let dir = models.dir.clone();
+        let Some(policy) = models.policy.as_mut() else {
+            bail!(
+                "no diffusion-policy model at {} (train it with `dips train --policy`)",
+                dir.join(crate::policy::POLICY_DIR)
+                    .join("denoiser.onnx")
+                    .display()
+            );
+        };
+        let runs = settings.max_modes.map_or(limit, |m| m.min(limit));
+        return crate::policy::run_policy_episode(
+            hand,
+            policy,
+            seed,
+            exec,
+            &settings.sampler,
+            runs,
+            progress,
+        );
+    }
     let mut rng = KernelRng::seed_from_u64(seed);
     let mut sampler_rng = KernelRng::seed_from_u64(seed ^ 0xd1ff_0510);
     let mut session = match (models, method.needs_models()) {

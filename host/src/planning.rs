@@ -242,6 +242,9 @@ pub struct Models {
     pub prior: Option<MarkovPrior>,
     /// The directory they were loaded from.
     pub dir: PathBuf,
+    /// The Diffusion Policy baseline's denoiser (`dir/policy/denoiser.onnx`), when the
+    /// directory has one (`crate::policy`).
+    pub policy: Option<AnyEngine>,
 }
 
 impl Models {
@@ -266,10 +269,13 @@ impl Models {
     pub fn set_threads(&mut self, threads: usize) {
         self.denoiser.set_threads(threads);
         self.discriminator.set_threads(threads);
+        if let Some(p) = &mut self.policy {
+            p.set_threads(threads);
+        }
     }
 
-    /// Load `denoiser.onnx`, `discriminator.onnx` and, when present, `prior.json` from `dir`
-    /// for `task` with `kind`.
+    /// Load `denoiser.onnx`, `discriminator.onnx` and, when present, `prior.json` and
+    /// `policy/denoiser.onnx` from `dir` for `task` with `kind`.
     pub fn load(kind: EngineKind, dir: &Path, task: Task) -> anyhow::Result<Self> {
         let prior_path = dir.join(PRIOR_FILE);
         let prior = if prior_path.is_file() {
@@ -286,11 +292,25 @@ impl Models {
             discriminator: load_model(kind, dir, Role::Discriminator, task)?,
             prior,
             dir: dir.to_path_buf(),
+            policy: if dir
+                .join(crate::policy::POLICY_DIR)
+                .join(model_file(Role::Denoiser))
+                .is_file()
+            {
+                Some(crate::policy::load_policy(kind, dir, task)?)
+            } else {
+                None
+            },
         })
     }
 }
 
-fn load_model(kind: EngineKind, dir: &Path, role: Role, task: Task) -> anyhow::Result<AnyEngine> {
+pub(crate) fn load_model(
+    kind: EngineKind,
+    dir: &Path,
+    role: Role,
+    task: Task,
+) -> anyhow::Result<AnyEngine> {
     let file = dir.join(model_file(role));
     if !file.is_file() {
         bail!("no {role:?} model at {}", file.display());

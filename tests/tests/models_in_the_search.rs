@@ -80,6 +80,7 @@ fn plan(kind: EngineKind, model_task: Task, task: Task) -> SearchReport {
         discriminator: load(kind, model_task, Role::Discriminator),
         prior: None,
         dir: std::path::PathBuf::new(),
+        policy: None,
     };
     let prior = MarkovPrior::uniform(task.mode_count()).unwrap();
     let goal = match task {

@@ -30,7 +30,7 @@ pub struct EpisodeArgs {
     #[arg(long)]
     pub task: String,
     /// Method: dips, dips-sampled, csvto-sampled, dips-no-replan, dips-k1,
-    /// dips-max-likelihood.
+    /// dips-max-likelihood, diffusion-policy.
     #[arg(long)]
     pub method: String,
     /// Seed of the episode (contact-sequence draw, search, samplers, CSVTO initialisation).
@@ -79,12 +79,6 @@ pub fn run(args: EpisodeArgs) -> anyhow::Result<()> {
             args.task
         )
     })?;
-    if args.method == "diffusion-policy" {
-        bail!(
-            "method `diffusion-policy` is not available yet; available: {}",
-            Method::ALL.map(Method::name).join(", ")
-        );
-    }
     let method = Method::from_name(&args.method)?;
     if args.max_modes == Some(0) {
         bail!("--max-modes must be at least 1");

@@ -42,6 +42,10 @@ pub struct TrainArgs {
     /// Start over even when a checkpoint exists.
     #[arg(long)]
     pub fresh: bool,
+    /// Train the Diffusion Policy baseline (`--method diffusion-policy`): the denoiser only,
+    /// on windows of the demos' executed rows across modes, without contact-mode input.
+    #[arg(long)]
+    pub policy: bool,
     /// No progress bars.
     #[arg(long)]
     pub quiet: bool,
@@ -81,7 +85,15 @@ pub fn run(args: TrainArgs) -> anyhow::Result<()> {
         stop_after: None,
         fresh: args.fresh,
     };
-    let report = dips_train::run(task, &args.data, &args.out, &settings, &opts)?;
-    crate::output::line(&serde_json::to_string_pretty(&report)?)?;
+    let text = if args.policy || settings.denoiser.policy {
+        serde_json::to_string_pretty(&dips_train::run_policy(
+            task, &args.data, &args.out, &settings, &opts,
+        )?)?
+    } else {
+        serde_json::to_string_pretty(&dips_train::run(
+            task, &args.data, &args.out, &settings, &opts,
+        )?)?
+    };
+    crate::output::line(&text)?;
     Ok(())
 }

@@ -13,25 +13,20 @@ fn temp_dir(name: &str) -> std::path::PathBuf {
 }
 
 #[test]
-fn unknown_and_unavailable_methods_list_the_available_ones() {
-    for (method, expect) in [
-        ("pen", "unknown method"),
-        ("diffusion-policy", "not available"),
-    ] {
-        let out = dips()
-            .args(["episode", "--task", "card", "--method", method, "--out"])
-            .arg(temp_dir("reject"))
-            .output()
-            .expect("run dips");
-        assert!(!out.status.success());
-        let err = String::from_utf8_lossy(&out.stderr);
-        assert!(
-            err.contains(expect)
-                && err.contains("dips-max-likelihood")
-                && err.contains("csvto-sampled"),
-            "{err}"
-        );
-    }
+fn an_unknown_method_lists_the_available_ones() {
+    let out = dips()
+        .args(["episode", "--task", "card", "--method", "pen", "--out"])
+        .arg(temp_dir("reject"))
+        .output()
+        .expect("run dips");
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("unknown method")
+            && err.contains("dips-max-likelihood")
+            && err.contains("diffusion-policy"),
+        "{err}"
+    );
 }
 
 #[test]
@@ -337,5 +332,48 @@ fn a_rendered_episode_writes_an_animation_plots_and_a_report_whose_assets_exist(
         .output()
         .unwrap();
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn the_diffusion_policy_baseline_acts_from_the_state_alone_with_the_shipped_model() {
+    let dir = temp_dir("policy");
+    let out = dips()
+        .args(["episode", "--task", "card", "--method", "diffusion-policy"])
+        .args(["--seed", "2", "--max-modes", "1", "--out"])
+        .arg(&dir)
+        .output()
+        .expect("run dips");
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let v: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("result.json")).unwrap()).unwrap();
+    assert_eq!(v["method"], "diffusion-policy");
+    // No contact modes and no planning: one run of H = 8 actions, each the policy's own.
+    assert_eq!(v["modes"], serde_json::json!(["policy"]));
+    assert!(v.get("plans").is_none() && v["planning_s"].as_array().unwrap().is_empty());
+    let steps = v["mode_runs"][0]["steps"].as_array().unwrap();
+    assert_eq!(steps.len(), 8);
+    for s in steps {
+        let dq = s["dq"].as_array().unwrap();
+        assert_eq!(dq.len(), 8);
+        assert!(dq.iter().any(|x| x.as_f64().unwrap() != 0.0), "{s}");
+        assert!(s["solve_s"].as_f64().unwrap() > 0.0);
+    }
+    assert!(v["final_distance_m"].as_f64().unwrap().is_finite());
+    // Its report reads the episode like any other.
+    assert_assets_exist(&dir.join("report.html"));
+    // --modes makes no sense for it.
+    let o = dips()
+        .args(["episode", "--task", "card", "--method", "diffusion-policy"])
+        .args(["--modes", "index", "--out"])
+        .arg(temp_dir("policy-modes"))
+        .output()
+        .unwrap();
+    assert!(!o.status.success());
+    assert!(String::from_utf8_lossy(&o.stderr).contains("no contact modes"));
     let _ = std::fs::remove_dir_all(&dir);
 }

@@ -49,6 +49,60 @@ impl Samples {
     }
 }
 
+/// The Diffusion Policy's training windows of one demo (spec §5: the demo's per-mode
+/// trajectories concatenated, no contact-mode input). A mode's executed rows `[s_t, u_t]` are
+/// rows `0..=k` of its last recorded step `k`'s particle 0 (the recorder keeps the executed
+/// prefix and the executed particle first); concatenated over the demo's modes they give `L`
+/// rows, and every start `j < L` gives one window of `T` rows, the end padded with the last
+/// executed state holding still (zero action). Returns `[L, T, D]` and `L`.
+pub fn policy_windows(demo: &dips_dataset::DemoRecord) -> (Vec<f32>, usize) {
+    let dims = demo.dims();
+    let (t, d) = (dims.horizon, dims.dim());
+    let mut rows: Vec<f32> = Vec::new();
+    for m in 0..demo.modes.len() {
+        let last = (0..demo.len())
+            .filter(|&i| demo.mode_index[i] == m as i64 && demo.particle[i] == 0)
+            .max_by_key(|&i| demo.step[i]);
+        let Some(i) = last else { continue };
+        let k = usize::try_from(demo.step[i]).unwrap_or(0).min(t - 1);
+        rows.extend_from_slice(&demo.trajectory(i)[..(k + 1) * d]);
+    }
+    let l = rows.len() / d.max(1);
+    if l == 0 {
+        return (Vec::new(), 0);
+    }
+    let state = dims.state_dim;
+    let mut still = rows[(l - 1) * d..l * d].to_vec();
+    still[state..].iter_mut().for_each(|v| *v = 0.0);
+    let mut out = Vec::with_capacity(l * t * d);
+    for j in 0..l {
+        for r in j..j + t {
+            if r < l {
+                out.extend_from_slice(&rows[r * d..(r + 1) * d]);
+            } else {
+                out.extend_from_slice(&still);
+            }
+        }
+    }
+    (out, l)
+}
+
+impl Samples {
+    /// The Diffusion Policy's windows ([`policy_windows`]) of the demos with indices `demos`,
+    /// with a zero context.
+    pub fn gather_policy(ds: &Dataset, demos: &[usize]) -> Self {
+        let f = ds.dims().fingers;
+        let mut s = Samples::default();
+        for &i in demos {
+            let (x, l) = policy_windows(&ds.demos[i]);
+            s.x.extend_from_slice(&x);
+            s.context.extend(std::iter::repeat_n(0.0, l * f));
+            s.n += l;
+        }
+        s
+    }
+}
+
 /// The cos/sin column pairs of a task (from the contract's column names).
 pub fn angle_columns(task: Task) -> Vec<(usize, usize)> {
     let Some(layout) = dips_onnx::tasks::task_layout(task.name()) else {
@@ -278,5 +332,72 @@ pub fn noise_batch(
         t,
         context,
         cond_mask,
+    }
+}
+
+#[cfg(test)]
+mod policy_tests {
+    use super::*;
+    use dips_dataset::DemoRecord;
+
+    /// A card demo of two modes, 2 steps each, 2 particles per step; every float encodes
+    /// (mode, step, particle, row, column).
+    fn demo() -> DemoRecord {
+        let task = Task::Card;
+        let dims = task.dims();
+        let (t, d) = (dims.horizon, dims.dim());
+        let mut r = DemoRecord {
+            task,
+            seed: 7,
+            modes: vec!["index".into(), "middle".into()],
+            trajectories: Vec::new(),
+            contexts: Vec::new(),
+            mode_index: Vec::new(),
+            step: Vec::new(),
+            particle: Vec::new(),
+            metadata: Default::default(),
+        };
+        for m in 0..2i64 {
+            for k in 0..2i64 {
+                for p in 0..2i64 {
+                    for row in 0..t {
+                        for c in 0..d {
+                            r.trajectories.push(
+                                (1000 * m + 100 * k + 10 * p) as f32 + row as f32 + c as f32 * 1e-3,
+                            );
+                        }
+                    }
+                    r.contexts.extend([1.0, -1.0]);
+                    r.mode_index.push(m);
+                    r.step.push(k);
+                    r.particle.push(p);
+                }
+            }
+        }
+        r
+    }
+
+    #[test]
+    fn windows_follow_the_executed_rows_across_modes() {
+        let demo = demo();
+        let dims = demo.dims();
+        let (t, d) = (dims.horizon, dims.dim());
+        let (x, l) = policy_windows(&demo);
+        // Each mode's last step is 1: its particle 0's rows 0 and 1 were executed.
+        assert_eq!(l, 4);
+        assert_eq!(x.len(), l * t * d);
+        let first_col = |w: usize, row: usize| x[(w * t + row) * d];
+        // Window 0: mode 0's rows 0, 1 (step 1, particle 0), then mode 1's rows 0, 1.
+        assert_eq!(first_col(0, 0), 100.0);
+        assert_eq!(first_col(0, 1), 101.0);
+        assert_eq!(first_col(0, 2), 1100.0);
+        assert_eq!(first_col(0, 3), 1101.0);
+        // Past the end: the last executed state, holding still.
+        assert_eq!(first_col(0, 4), 1101.0);
+        let w3_row1 = &x[(3 * t + 1) * d..(3 * t + 2) * d];
+        assert_eq!(w3_row1[0], 1101.0);
+        assert!(w3_row1[dims.state_dim..].iter().all(|&v| v == 0.0));
+        // Window 3 starts at the last executed row.
+        assert_eq!(first_col(3, 0), 1101.0);
     }
 }

@@ -158,8 +158,13 @@ pub(crate) fn checkpoint_dir(out_dir: &Path) -> Result<PathBuf> {
 /// The split's samples; errors when there is nothing to train on.
 pub(crate) fn split_samples(ds: &Dataset, settings: &TrainSettings) -> Result<(Samples, Samples)> {
     let split = ds.split(settings.held_out_fraction);
-    let train = Samples::gather(ds, &split.train);
-    let held = Samples::gather(ds, &split.held_out);
+    let gather = if settings.denoiser.policy {
+        Samples::gather_policy
+    } else {
+        Samples::gather
+    };
+    let train = gather(ds, &split.train);
+    let held = gather(ds, &split.held_out);
     if train.n == 0 {
         return Err(TrainError::DatasetUnusable(
             "no training trajectories after the held-out split".into(),

@@ -75,6 +75,72 @@ pub struct TrainReport {
     pub prior: dips_dataset::PriorFile,
 }
 
+/// What [`run_policy`] writes to `train_report.json`.
+#[derive(Debug, Clone, Serialize)]
+pub struct PolicyReport {
+    /// The task.
+    pub task: String,
+    /// What was trained.
+    pub model: &'static str,
+    /// The dataset directory.
+    pub data_dir: PathBuf,
+    /// Demos read.
+    pub demos: usize,
+    /// Training windows over all demos.
+    pub windows: usize,
+    /// Seeds of the held-out demos.
+    pub held_out_seeds: Vec<u64>,
+    /// The settings.
+    pub settings: TrainSettings,
+    /// The denoiser's figures.
+    pub denoiser: DenoiserReport,
+    /// The normalisation written into the model.
+    pub norm_mean: Vec<f32>,
+    /// The normalisation's standard deviations.
+    pub norm_std: Vec<f32>,
+}
+
+/// Train the Diffusion Policy baseline (spec §5) on the dataset in `data_dir`: the denoiser
+/// on windows of the demos' executed rows concatenated across modes, with no contact-mode
+/// input (`settings.denoiser.policy` is set). Writes `denoiser.onnx` (contract v1; its
+/// context input is always zero) and `train_report.json` into `out_dir`; resumable like
+/// [`run`].
+pub fn run_policy(
+    task: Task,
+    data_dir: &Path,
+    out_dir: &Path,
+    settings: &TrainSettings,
+    opts: &RunOptions,
+) -> Result<PolicyReport> {
+    let mut settings = settings.clone();
+    settings.denoiser.policy = true;
+    settings.validate()?;
+    let ds = dips_dataset::read_dir(data_dir, task)?;
+    std::fs::create_dir_all(out_dir).map_err(io_err(out_dir))?;
+    let den = train_denoiser(&ds, &settings, out_dir, opts)?;
+    export_denoiser(&den, &out_dir.join(DENOISER_FILE))?;
+    let split = ds.split(settings.held_out_fraction);
+    let report = PolicyReport {
+        task: task.name().to_string(),
+        model: "diffusion-policy",
+        data_dir: data_dir.to_path_buf(),
+        demos: ds.demos.len(),
+        windows: ds.demos.iter().map(|d| data::policy_windows(d).1).sum(),
+        held_out_seeds: split.held_out.iter().map(|&i| ds.demos[i].seed).collect(),
+        settings: settings.clone(),
+        denoiser: den.report.clone(),
+        norm_mean: den.norm.mean.clone(),
+        norm_std: den.norm.std.clone(),
+    };
+    let path = out_dir.join(REPORT_FILE);
+    let json = serde_json::to_vec_pretty(&report).map_err(|e| TrainError::Io {
+        path: path.clone(),
+        source: std::io::Error::other(e),
+    })?;
+    dips_dataset::write_atomic(&path, &json).map_err(io_err(&path))?;
+    Ok(report)
+}
+
 /// Write the denoiser to `path` (validated against contract v1 first).
 pub fn export_denoiser(d: &TrainedDenoiser, path: &Path) -> Result<dips_onnx::Contract> {
     export::write_model(path, &d.onnx()?)

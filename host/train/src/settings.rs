@@ -62,6 +62,11 @@ pub struct DenoiserSettings {
     /// motion poorly (`docs/training.md`).
     #[serde(default = "default_object_loss_weight")]
     pub object_loss_weight: f32,
+    /// Train the Diffusion Policy baseline instead of `M(c, s₀)`: trajectories are windows of
+    /// a demo's executed rows concatenated across its modes ([`crate::data::policy_windows`]),
+    /// with no contact-mode input (the context is zero). Only the denoiser is trained.
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub policy: bool,
 }
 
 fn default_object_loss_weight() -> f32 {
@@ -81,6 +86,7 @@ impl Default for DenoiserSettings {
             ema_every: 10,
             ema_warmup: None,
             object_loss_weight: 10.0,
+            policy: false,
         }
     }
 }

@@ -1,0 +1,165 @@
+//! The Diffusion Policy baseline (`--method diffusion-policy`, spec §5): a receding-horizon
+//! diffusion policy with no contact modes and no search. Its denoiser (`<models>/policy/
+//! denoiser.onnx`, trained by `dips train --policy` on windows of the demos' executed rows
+//! concatenated across modes) is conditioned on the current state only, through inpainting
+//! of row 0's state, with a zero contact-mode context. At every action one trajectory is
+//! sampled from the measured state and row 0's joint deltas are executed: the observation
+//! horizon is 1 and the action horizon is 1, as the paper ran it.
+//!
+//! The episode lasts as many actions as the task's mode limit allows CSVTO (7 × 12 for the
+//! screwdriver, 5 × 8 for the card); `result.json` groups them into "policy" runs of `H`
+//! actions so the same tables and pictures read it. The policy plans no contact forces and no
+//! clearance, so `tip_sdf` and `planned_state` are empty and `solve_s` is the sampling time.
+
+use std::path::Path;
+use std::time::Instant;
+
+use anyhow::{Context, bail};
+use dips_kernel::diffusion::SamplerConfig;
+use dips_kernel::engine::DenoiserEngine;
+use dips_kernel::rng::KernelRng;
+use dips_onnx::{AnyEngine, EngineKind};
+
+use crate::execute::episode::{EpisodeResult, SCREWDRIVER_SUCCESS_YAW};
+use crate::execute::{ExecSettings, ModeRun, StepLog, hand_state, pose_valid};
+use crate::hand::Hand;
+use crate::planning::sample_trajectories;
+use crate::problems::contract::contract_state;
+use crate::scenes::SceneKind;
+
+/// The policy's folder inside a models directory.
+pub const POLICY_DIR: &str = "policy";
+
+/// The name of the policy's runs in `result.json`'s `modes`.
+pub const POLICY_RUN: &str = "policy";
+
+/// Load the policy's denoiser from `models/policy/denoiser.onnx`, checked against `task`'s
+/// contract.
+pub fn load_policy(
+    kind: EngineKind,
+    models: &Path,
+    task: dips_kernel::mode::Task,
+) -> anyhow::Result<AnyEngine> {
+    let dir = models.join(POLICY_DIR);
+    crate::planning::load_model(kind, &dir, dips_onnx::Role::Denoiser, task).with_context(|| {
+        format!(
+            "the diffusion-policy baseline needs its model in {} (train it with \
+             `dips train --policy`)",
+            dir.display()
+        )
+    })
+}
+
+/// The object goal drawn for a policy run: the task's success line (screwdriver yaw −π/3
+/// from the start) or the card's goal.
+fn run_goal(scene: SceneKind, start: &[f64]) -> [f64; 3] {
+    let o = &start[start.len() - 3..];
+    match scene {
+        SceneKind::Screwdriver => [0.0, 0.0, o[2] + SCREWDRIVER_SUCCESS_YAW],
+        SceneKind::Card => [0.0, f64::from(dips_kernel::task::CARD_GOAL_Y), 0.0],
+    }
+}
+
+/// Run the policy on `hand` for `runs` runs of `exec.horizon` actions each.
+#[allow(clippy::too_many_arguments)]
+pub fn run_policy_episode<H: Hand + ?Sized>(
+    hand: &mut H,
+    policy: &mut AnyEngine,
+    seed: u64,
+    exec: &ExecSettings,
+    sampler: &SamplerConfig,
+    runs: usize,
+    progress: &mut dyn FnMut(&str),
+) -> anyhow::Result<EpisodeResult> {
+    let scene = hand.scene();
+    let dims = DenoiserEngine::dims(policy);
+    let nq = 4 * scene.task_fingers().len();
+    if dims.state_dim < nq || dims.action_dim < nq {
+        bail!(
+            "the policy model has {} state and {} action columns; the {} task needs at least {nq}",
+            dims.state_dim,
+            dims.action_dim,
+            scene.name()
+        );
+    }
+    let invariant = dips_kernel::session::invariant_angle(scene.task());
+    let context = vec![0f32; dims.fingers];
+    let mut rng = KernelRng::seed_from_u64(seed ^ 0xd1ff_0901);
+    let start = hand_state(hand);
+    let mut valid = pose_valid(scene, &hand.object_pose());
+    let mut mode_runs = Vec::with_capacity(runs);
+    let mut step_s = Vec::new();
+    for r in 0..runs {
+        let run_start = hand_state(hand);
+        let mut steps = Vec::with_capacity(exec.horizon);
+        for k in 0..exec.horizon {
+            let state = hand_state(hand);
+            let s0: Vec<f32> = contract_state(&state).iter().map(|&v| v as f32).collect();
+            let t0 = Instant::now();
+            let out = sample_trajectories(policy, sampler, &context, &s0, invariant, &mut rng)
+                .context("diffusion policy sample")?;
+            let solve_s = t0.elapsed().as_secs_f64();
+            let dq: Vec<f64> = out[dims.state_dim..dims.state_dim + nq]
+                .iter()
+                .map(|&v| f64::from(v))
+                .collect();
+            if dq.iter().any(|v| !v.is_finite()) {
+                bail!("the policy sampled a non-finite action at run {r} step {k}");
+            }
+            let mut targets = hand.joint_positions();
+            for (i, f) in scene.task_fingers().iter().enumerate() {
+                for j in 0..4 {
+                    targets[f.index()][j] += dq[4 * i + j];
+                }
+            }
+            hand.command(&targets)?;
+            let after = hand_state(hand);
+            let ok = pose_valid(scene, &hand.object_pose());
+            valid &= ok;
+            let o = &after[nq..];
+            progress(&format!(
+                "policy run {}/{runs} step {}/{}: sample {solve_s:.3}s, object {:?}{}",
+                r + 1,
+                k + 1,
+                exec.horizon,
+                o.iter()
+                    .map(|v| (v * 1e3).round() / 1e3)
+                    .collect::<Vec<_>>(),
+                if ok { "" } else { " INVALID" }
+            ));
+            step_s.push(solve_s);
+            steps.push(StepLog {
+                solve_s,
+                iters: 0,
+                max_eq_violation: 0.0,
+                max_ineq_violation: 0.0,
+                dq,
+                planned_state: Vec::new(),
+                state: after,
+                tip_sdf: Vec::new(),
+                valid: ok,
+                contacts: hand.contact_readings().unwrap_or_default(),
+            });
+        }
+        mode_runs.push(ModeRun {
+            mode: POLICY_RUN,
+            goal: run_goal(scene, &start),
+            start_state: run_start,
+            end_state: hand_state(hand),
+            steps,
+            regrasp_target_distance: Vec::new(),
+        });
+    }
+    let end = hand_state(hand);
+    Ok(EpisodeResult::assemble(
+        scene,
+        "diffusion-policy",
+        seed,
+        &start,
+        &end,
+        mode_runs,
+        Vec::new(),
+        step_s,
+        valid,
+    ))
+}
