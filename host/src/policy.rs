@@ -21,6 +21,7 @@ use dips_kernel::rng::KernelRng;
 use dips_onnx::{AnyEngine, EngineKind};
 
 use crate::execute::episode::{EpisodeResult, SCREWDRIVER_SUCCESS_YAW};
+use crate::execute::mode_run::command_deltas;
 use crate::execute::{ExecSettings, ModeRun, StepLog, hand_state, pose_valid};
 use crate::hand::Hand;
 use crate::planning::sample_trajectories;
@@ -106,13 +107,7 @@ pub fn run_policy_episode<H: Hand + ?Sized>(
             if dq.iter().any(|v| !v.is_finite()) {
                 bail!("the policy sampled a non-finite action at run {r} step {k}");
             }
-            let mut targets = hand.joint_positions();
-            for (i, f) in scene.task_fingers().iter().enumerate() {
-                for j in 0..4 {
-                    targets[f.index()][j] += dq[4 * i + j];
-                }
-            }
-            hand.command(&targets)?;
+            command_deltas(hand, &dq)?;
             let after = hand_state(hand);
             let ok = pose_valid(scene, &hand.object_pose());
             valid &= ok;

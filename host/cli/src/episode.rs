@@ -146,10 +146,11 @@ pub fn run(args: EpisodeArgs) -> anyhow::Result<()> {
 /// `report.html` and, when `animate`, the animation.
 pub fn write_report(dir: &std::path::Path, animate: bool) -> anyhow::Result<()> {
     let rec = dips_report::Recording::read(&dir.join("result.json"))?;
-    let bar = crate::render::progress_bar(rec.frames.len(), "animation", "frames");
-    if !animate {
-        bar.finish_and_clear();
-    }
+    let bar = if animate {
+        crate::render::progress_bar(rec.frames.len(), "animation", "frames")
+    } else {
+        indicatif::ProgressBar::hidden()
+    };
     dips_report::write_episode_report(dir, &rec, animate, &mut |done, _| {
         bar.set_position(done as u64)
     })

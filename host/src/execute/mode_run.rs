@@ -22,6 +22,18 @@ pub fn mode_goal(mode: Mode, start: &[f64]) -> [f64; 3] {
     dips_kernel::task::mode_goal(mode, [o[0], o[1], o[2]])
 }
 
+/// Command the hand to its measured joints plus `dq`, the task fingers' joint deltas in
+/// contract order (4 per task finger); the other fingers hold.
+pub fn command_deltas<H: Hand + ?Sized>(hand: &mut H, dq: &[f64]) -> Result<(), HandError> {
+    let mut targets = hand.joint_positions();
+    for (i, f) in hand.scene().task_fingers().iter().enumerate() {
+        for j in 0..4 {
+            targets[f.index()][j] += dq[4 * i + j];
+        }
+    }
+    hand.command(&targets)
+}
+
 /// Errors from closed-loop execution.
 #[derive(Debug, thiserror::Error)]
 pub enum ExecError {
@@ -305,13 +317,7 @@ pub fn run_mode_observed<H: Hand + ?Sized>(
             .map(|c| best[problem.dq_col(c / 4, c % 4)])
             .collect();
         let planned_state = problem.to_world_units(&best[..problem.state_dim()]);
-        let mut targets = hand.joint_positions();
-        for (i, f) in task.task_fingers().iter().enumerate() {
-            for j in 0..4 {
-                targets[f.index()][j] += dq[4 * i + j];
-            }
-        }
-        hand.command(&targets)?;
+        command_deltas(hand, &dq)?;
         let state = hand_state(hand);
         let o = [state[nq], state[nq + 1], state[nq + 2]];
         let tip_sdf = (0..problem.fingers())
