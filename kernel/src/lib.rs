@@ -3,8 +3,11 @@
 //! `#![no_std]` without `alloc`: every buffer has a capacity fixed by const generics or is
 //! provided by the caller, and running out of room is reported as a status, never a panic.
 //! See `ARCHITECTURE.md` at the workspace root for the crate map and data flow.
+//!
+//! No `unsafe` but one kind of call: the AVX2 copies of the hot op kernels are entered only
+//! after the CPU reports AVX2 (`nn::ops::cpu::wide!`, the single `allow(unsafe_code)`).
 #![no_std]
-#![forbid(unsafe_code)]
+#![deny(unsafe_code)]
 #![cfg_attr(
     not(test),
     deny(clippy::unwrap_used, clippy::expect_used, clippy::panic)

@@ -256,6 +256,22 @@ fn the_firmware_plans_with_uploaded_models_as_the_kernel_does_in_process() {
     assert_eq!(without_time(plan_reply(&small[0])), without_time(first));
 }
 
+/// The kernel's op kernels have AVX2 copies chosen at run time (`nn::ops::cpu`); with them
+/// or without, the same plan, bit for bit (expected terminal states, costs and weights
+/// included), so a plan does not depend on the CPU that made it.
+#[test]
+fn the_plan_is_the_same_with_or_without_the_wide_op_kernels() {
+    let den = lowered(Task::Screwdriver, Role::Denoiser);
+    let disc = lowered(Task::Screwdriver, Role::Discriminator);
+    let request = request(7);
+    dips_kernel::nn::ops::cpu::allow_wide(false);
+    let narrow = without_time(in_process(&den, &disc, &request));
+    dips_kernel::nn::ops::cpu::allow_wide(true);
+    let wide = without_time(in_process(&den, &disc, &request));
+    assert!(!wide.modes.is_empty());
+    assert_eq!(wide, narrow);
+}
+
 #[test]
 fn models_the_firmware_cannot_run_are_refused_with_typed_errors() {
     let den = lowered(Task::Screwdriver, Role::Denoiser);

@@ -22,6 +22,9 @@ pub struct InferenceArgs {
     /// Print JSON instead of readable `key: value` lines.
     #[arg(long)]
     pub json: bool,
+    /// Which copies of the kernel interpreter's op kernels run (the outputs are the same).
+    #[arg(long, value_enum, default_value_t = crate::model::SimdArg::Auto)]
+    pub simd: crate::model::SimdArg,
 }
 
 /// Median and minimum of the timings.
@@ -53,6 +56,7 @@ fn time_engine(
 /// Run `dips bench inference`.
 pub fn run(a: &InferenceArgs) -> anyhow::Result<()> {
     anyhow::ensure!(a.batch > 0, "--batch must be positive");
+    let simd = a.simd.apply();
     let (_, c) = dips_onnx::contract::load_contract(&a.file)?;
     let mut rng = KernelRng::seed_from_u64(7);
     let inputs: Vec<Vec<f32>> = c
@@ -94,6 +98,7 @@ pub fn run(a: &InferenceArgs) -> anyhow::Result<()> {
             "role": c.role.name(),
             "task": c.task,
             "batch": a.batch,
+            "simd": simd,
             "iters": a.iters,
             "tract_s": tract_s,
             "kernel_s": kernel_s,

@@ -18,7 +18,7 @@ use dips_kernel::search::SearchConfig;
 use dips_kernel::session::PlanSpec;
 use serde_json::json;
 
-use crate::model::EngineArg;
+use crate::model::{EngineArg, SimdArg};
 
 /// `dips bench plan`.
 #[derive(Debug, Args)]
@@ -51,6 +51,9 @@ pub struct PlanBenchArgs {
     /// how many expansions fit a time budget.
     #[arg(long)]
     pub threads: Option<usize>,
+    /// Which copies of the kernel interpreter's op kernels run (the plans are the same).
+    #[arg(long, value_enum, default_value_t = SimdArg::Auto)]
+    pub simd: SimdArg,
 }
 
 /// Run the benchmark.
@@ -68,6 +71,7 @@ pub fn run(args: &PlanBenchArgs) -> anyhow::Result<()> {
         anyhow::bail!("--time-budget-s must be a finite number of seconds ≥ 0");
     }
     let task = scene.task();
+    let simd = args.simd.apply();
     let sampler = parse_sampler(&args.sampler)?;
     let dir = models_dir(args.models.as_deref(), task)?;
     let mut models = Models::load(args.engine.into(), &dir, task)?;
@@ -124,6 +128,7 @@ pub fn run(args: &PlanBenchArgs) -> anyhow::Result<()> {
         "sampler": args.sampler,
         "start": "the task's start state",
         "threads": threads,
+        "simd": simd,
         "calls": calls,
         "seconds": {
             "median": stats.median,

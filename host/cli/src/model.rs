@@ -70,6 +70,29 @@ impl From<EngineArg> for EngineKind {
     }
 }
 
+/// Which copies of the kernel interpreter's op kernels run (`--simd`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, ValueEnum)]
+pub enum SimdArg {
+    /// The AVX2 copies where the CPU has AVX2, the baseline copies elsewhere.
+    #[default]
+    Auto,
+    /// The baseline copies (SSE2 on x86-64) only: to measure what AVX2 gains. The results
+    /// are the same bit for bit.
+    Baseline,
+}
+
+impl SimdArg {
+    /// Set it for the whole process; the name of the copies in use (`avx2` or `baseline`).
+    pub fn apply(self) -> &'static str {
+        dips_kernel::nn::ops::cpu::allow_wide(self == SimdArg::Auto);
+        if dips_kernel::nn::ops::cpu::wide_in_use() {
+            "avx2"
+        } else {
+            "baseline"
+        }
+    }
+}
+
 /// The threads of a model call from `--threads` (default: every core); 0 is refused.
 pub fn threads(given: Option<usize>) -> anyhow::Result<usize> {
     match given {

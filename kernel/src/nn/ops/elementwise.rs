@@ -51,7 +51,8 @@ pub fn mish(x: f32) -> f32 {
     if x > 20.0 { x } else { m }
 }
 
-/// [`mish`] over a slice, in place.
+/// [`mish`] over a slice, in place (inlined, so the AVX2 copy of its caller vectorizes it).
+#[inline(always)]
 pub fn mish_in_place(y: &mut [f32]) {
     for v in y.iter_mut() {
         *v = mish(*v);
@@ -163,9 +164,22 @@ fn inner_loop(f: BinaryFn, a: &[f32], b: &[f32], y: &mut [f32], sa: usize, sb: u
     }
 }
 
-/// One sample of `y = f(a, b)` with broadcasting: `y` is `dims` row-major, `a` and `b` are
-/// read with `sa`/`sb` (0 on broadcast axes).
-pub fn binary(
+super::cpu::wide! {
+    /// One sample of `y = f(a, b)` with broadcasting: `y` is `dims` row-major, `a` and `b` are
+    /// read with `sa`/`sb` (0 on broadcast axes).
+    pub fn binary(
+        f: BinaryFn,
+        a: &[f32],
+        b: &[f32],
+        y: &mut [f32],
+        dims: &[u32; RANK],
+        sa: &[u32; RANK],
+        sb: &[u32; RANK],
+    ) -> Result<(), OpSizeError> = binary_body;
+}
+
+#[inline(always)]
+fn binary_body(
     f: BinaryFn,
     a: &[f32],
     b: &[f32],

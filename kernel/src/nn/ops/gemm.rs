@@ -2,8 +2,20 @@
 
 use super::{OpSizeError, ensure, mul};
 
-/// `y[r, :] = b + Σₖ a[r, k]·w[k, :]` for every row `r` of `a` (`[rows, k]`).
-pub fn gemm(
+super::cpu::wide! {
+    /// `y[r, :] = b + Σₖ a[r, k]·w[k, :]` for every row `r` of `a` (`[rows, k]`).
+    pub fn gemm(
+        a: &[f32],
+        w: &[f32],
+        b: &[f32],
+        y: &mut [f32],
+        k: usize,
+        n: usize,
+    ) -> Result<(), OpSizeError> = gemm_body;
+}
+
+#[inline(always)]
+fn gemm_body(
     a: &[f32],
     w: &[f32],
     b: &[f32],

@@ -4,6 +4,7 @@
 //! the geometry, so a hostile blob cannot make the interpreter panic.
 
 pub mod conv;
+pub mod cpu;
 pub mod elementwise;
 pub mod gemm;
 pub mod layout;

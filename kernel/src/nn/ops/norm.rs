@@ -47,10 +47,25 @@ pub fn instance_norm(
     Ok(())
 }
 
-/// One sample of group normalization with a per-channel affine map and optional Mish
-/// ([`crate::nn::format::Op::GroupNorm`]).
+super::cpu::wide! {
+    /// One sample of group normalization with a per-channel affine map and optional Mish
+    /// ([`crate::nn::format::Op::GroupNorm`]).
+    #[allow(clippy::too_many_arguments)]
+    pub fn group_norm(
+        x: &[f32],
+        y: &mut [f32],
+        group_len: usize,
+        channel_len: usize,
+        eps: f32,
+        gamma: &[f32],
+        beta: &[f32],
+        mish: bool,
+    ) -> Result<(), OpSizeError> = group_norm_body;
+}
+
+#[inline(always)]
 #[allow(clippy::too_many_arguments)]
-pub fn group_norm(
+fn group_norm_body(
     x: &[f32],
     y: &mut [f32],
     group_len: usize,
