@@ -13,18 +13,22 @@
 //! without planning memory ([`Firmware::new`]) answers [`WireError::PlannerUnavailable`]
 //! instead.
 
+pub mod link;
 pub mod planning;
 
-use std::io::{self, Read, Write};
+pub use link::{LinkClock, ServeStats, serve};
 
+use dips_kernel::budget::Clock;
 use dips_kernel::diffusion::SamplerConfig;
 use dips_kernel::mode::Task;
+use dips_kernel::nn::model::parse;
 use dips_kernel::prior::MarkovPrior;
+use dips_kernel::search::{ApproximateReason, PaperPlanner, SearchReport, SearchStatus};
 use dips_kernel::wire_convert::{PlanInputs, prior_from_table, sampler_from_settings};
 use dips_wire::{
-    Feed, Frame, FrameAccumulator, FromKernel, Hello, HelloAck, MAX_ENCODED_FRAME_LEN,
-    MODEL_CHUNK_LEN, ModelAssembler, ModelRole, NO_REQUEST_ID, PROTOCOL_VERSION, PlanRequest,
-    SCHEMA_KEY, ToKernel, UploadError, WireError, decode_frame, encode_frame,
+    FrameCounts, FromKernel, Hello, HelloAck, KernelStatus, LastPlan, MAX_ENCODED_FRAME_LEN,
+    MODEL_CHUNK_LEN, MemoryUse, ModelAssembler, ModelIdentity, ModelRole, PROTOCOL_VERSION,
+    PlanReply, PlanRequest, PlanStatus, SCHEMA_KEY, ToKernel, UploadError, WireError,
 };
 use planning::{MonotonicClock, PlanMemory};
 
@@ -35,9 +39,6 @@ pub const MODEL_CAPACITY_BYTES: usize = 32 * 1024 * 1024;
 /// (64 MiB). The paper's settings (k 16, four card modes) with the fixture-sized models need
 /// about 2 M floats; see [`planning::PlanMemory`].
 pub const WORK_FLOATS: usize = 16 * 1024 * 1024;
-
-/// Bytes read from the input stream per read call.
-const READ_CHUNK_LEN: usize = 256;
 
 /// The controller's request handler and its state.
 #[derive(Debug)]
@@ -52,6 +53,12 @@ pub struct Firmware<'m> {
     priors: [Option<MarkovPrior>; 2],
     /// Sampler settings for every plan (the paper's until the host sets them).
     sampler: SamplerConfig,
+    /// Frames handled since the firmware started (all connections).
+    frames: FrameCounts,
+    /// The last planning call.
+    last_plan: Option<LastPlan>,
+    /// Work-area floats the last planning call used.
+    work_floats_used: u32,
 }
 
 fn task_slot(task: Task) -> usize {
@@ -75,6 +82,9 @@ impl<'m> Firmware<'m> {
             clock: MonotonicClock::new(),
             priors: [None, None],
             sampler: SamplerConfig::default(),
+            frames: FrameCounts::default(),
+            last_plan: None,
+            work_floats_used: 0,
         }
     }
 
@@ -125,15 +135,78 @@ impl<'m> Firmware<'m> {
         }
     }
 
-    /// Answer one request.
+    /// Answer one request (no link: a plan cannot be cancelled; request id 0).
     pub fn handle(&mut self, request: &ToKernel) -> FromKernel {
-        match self.try_handle(request) {
+        let mut clock = LinkClock::unlinked(self.clock);
+        self.handle_with_clock(0, request, &mut clock)
+    }
+
+    /// Answer request `request_id`; a plan reads `clock` for its time budget and asks it
+    /// before every expansion whether it has been cancelled ([`serve`]'s link clock).
+    pub fn handle_with_clock(
+        &mut self,
+        request_id: u32,
+        request: &ToKernel,
+        clock: &mut impl Clock,
+    ) -> FromKernel {
+        match self.try_handle(request_id, request, clock) {
             Ok(reply) => reply,
             Err(error) => FromKernel::Error(error),
         }
     }
 
-    fn try_handle(&mut self, request: &ToKernel) -> Result<FromKernel, WireError> {
+    /// Count a decoded request ([`serve`]).
+    pub fn count_request(&mut self) {
+        self.frames.requests = self.frames.requests.saturating_add(1);
+    }
+
+    /// Count a refused frame ([`serve`]).
+    pub fn count_bad_frame(&mut self) {
+        self.frames.bad_frames = self.frames.bad_frames.saturating_add(1);
+    }
+
+    /// Count a reply written ([`serve`]).
+    pub fn count_reply(&mut self) {
+        self.frames.replies = self.frames.replies.saturating_add(1);
+    }
+
+    /// What `Status` answers: the loaded models, memory, the last plan, frame counts.
+    pub fn status(&self) -> KernelStatus {
+        let identity = |role| {
+            let (_, bytes) = self.assembler(role).model()?;
+            Some(model_identity(bytes, self.assembler(role).model_crc32()?))
+        };
+        let models_bytes = [ModelRole::Denoiser, ModelRole::Discriminator]
+            .iter()
+            .filter_map(|&r| self.model(r))
+            .map(|b| b.len())
+            .sum::<usize>();
+        KernelStatus {
+            denoiser: identity(ModelRole::Denoiser),
+            discriminator: identity(ModelRole::Discriminator),
+            memory: MemoryUse {
+                model_capacity_bytes: self.denoiser.capacity_bytes(),
+                models_bytes: u32::try_from(models_bytes).unwrap_or(u32::MAX),
+                planner_bytes: self.planning.as_ref().map_or(0, |_| {
+                    u32::try_from(core::mem::size_of::<PaperPlanner>()).unwrap_or(u32::MAX)
+                }),
+                work_floats: self
+                    .planning
+                    .as_ref()
+                    .map_or(0, |p| u32::try_from(p.work.len()).unwrap_or(u32::MAX)),
+                work_floats_used: self.work_floats_used,
+            },
+            last_plan: self.last_plan,
+            frames: self.frames,
+        }
+    }
+
+    fn try_handle(
+        &mut self,
+        request_id: u32,
+        request: &ToKernel,
+        clock: &mut impl Clock,
+    ) -> Result<FromKernel, WireError> {
         if let ToKernel::Hello(hello) = request {
             return self.hello(hello);
         }
@@ -142,7 +215,7 @@ impl<'m> Firmware<'m> {
         }
         match request {
             ToKernel::Hello(_) => Err(WireError::HandshakeRequired),
-            ToKernel::PlanRequest(plan) => self.plan(plan),
+            ToKernel::PlanRequest(plan) => self.plan(request_id, plan, clock),
             ToKernel::ModelBegin(begin) => {
                 self.active_upload = Some(begin.role);
                 let result = self.assembler_mut(begin.role).begin(begin);
@@ -170,6 +243,10 @@ impl<'m> Firmware<'m> {
                     .map_err(|field| WireError::InvalidRequest { field })?;
                 Ok(FromKernel::Applied)
             }
+            ToKernel::Status => Ok(FromKernel::Status(self.status())),
+            // A running plan saw it through its clock ([`serve`]); here there is nothing left
+            // to stop.
+            ToKernel::Cancel => Ok(FromKernel::Applied),
         }
     }
 
@@ -192,7 +269,12 @@ impl<'m> Firmware<'m> {
         }))
     }
 
-    fn plan(&mut self, plan: &PlanRequest) -> Result<FromKernel, WireError> {
+    fn plan(
+        &mut self,
+        request_id: u32,
+        plan: &PlanRequest,
+        clock: &mut impl Clock,
+    ) -> Result<FromKernel, WireError> {
         // The kernel's own request checks (start state, goal, settings, previous mode).
         let inputs =
             PlanInputs::from_request(plan).map_err(|field| WireError::InvalidRequest { field })?;
@@ -200,7 +282,6 @@ impl<'m> Firmware<'m> {
             denoiser,
             discriminator,
             planning,
-            clock,
             priors,
             sampler,
             ..
@@ -212,7 +293,54 @@ impl<'m> Firmware<'m> {
             prior: priors[task_slot(inputs.task)].as_ref(),
             sampler: *sampler,
         };
-        planning::plan(memory, den, disc, plan, &config, clock).map(FromKernel::PlanReply)
+        let done = planning::plan(memory, den, disc, plan, &config, clock)?;
+        let reply = PlanReply::from(&done.report);
+        self.work_floats_used = u32::try_from(done.work_floats).unwrap_or(u32::MAX);
+        self.last_plan = Some(last_plan(request_id, &done.report, &reply));
+        if done.report.status == SearchStatus::Approximate(ApproximateReason::Cancelled) {
+            self.frames.cancelled_plans = self.frames.cancelled_plans.saturating_add(1);
+        }
+        Ok(FromKernel::PlanReply(reply))
+    }
+}
+
+/// A loaded model's identity: its length and CRC, and the shapes its header declares.
+fn model_identity(bytes: &[u8], crc32: u32) -> ModelIdentity {
+    let dims = parse(bytes).ok().map(|info| info.dims);
+    let u16_of = |v: usize| u16::try_from(v).unwrap_or(u16::MAX);
+    let task = dims.and_then(|d| {
+        Task::ALL.into_iter().find(|t| {
+            let td = t.dims();
+            (td.state_dim, td.action_dim, td.fingers) == (d.state_dim, d.action_dim, d.fingers)
+        })
+    });
+    ModelIdentity {
+        len_bytes: u32::try_from(bytes.len()).unwrap_or(u32::MAX),
+        crc32,
+        task: task.map(Into::into),
+        horizon: dims.map_or(0, |d| u16_of(d.horizon)),
+        state_dim: dims.map_or(0, |d| u16_of(d.state_dim)),
+        action_dim: dims.map_or(0, |d| u16_of(d.action_dim)),
+        fingers: dims.map_or(0, |d| u16_of(d.fingers)),
+        diffusion_steps: dims.map_or(0, |d| u16_of(d.diffusion_steps)),
+    }
+}
+
+/// The last plan's figures for `Status`.
+fn last_plan(request_id: u32, report: &SearchReport, reply: &PlanReply) -> LastPlan {
+    let status: PlanStatus = reply.status;
+    LastPlan {
+        request_id,
+        status,
+        elapsed_ms: report.stats.elapsed_ms,
+        nodes_expanded: report.stats.nodes_expanded,
+        segments_sampled: report.stats.segments_sampled,
+        particles: report.particles,
+        effective_particles: report.effective_particles,
+        expected_progress: report.expected_progress,
+        terminal_cost: report.terminal_cost,
+        cost_to_come: report.cost_to_come,
+        heuristic: report.heuristic,
     }
 }
 
@@ -222,74 +350,4 @@ fn loaded<'a>(assembler: &'a ModelAssembler<'_>, role: ModelRole) -> Result<&'a 
         .model()
         .map(|(_, bytes)| bytes)
         .ok_or(WireError::ModelNotLoaded { role })
-}
-
-/// Counts of what [`serve`] saw.
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
-pub struct ServeStats {
-    /// Frames that decoded to a request.
-    pub requests: u64,
-    /// Frames dropped or refused as undecodable (bad COBS, too long, bad payload).
-    pub bad_frames: u64,
-    /// Replies written.
-    pub replies: u64,
-}
-
-/// Serve requests from `reader` until it ends, writing one reply frame per input frame to
-/// `writer` (flushed after every read). Returns when the input ends; I/O errors end it early.
-pub fn serve<R: Read, W: Write>(
-    firmware: &mut Firmware<'_>,
-    mut reader: R,
-    mut writer: W,
-) -> io::Result<ServeStats> {
-    let mut acc = FrameAccumulator::<MAX_ENCODED_FRAME_LEN>::new();
-    let mut rx = [0u8; READ_CHUNK_LEN];
-    let mut tx = [0u8; MAX_ENCODED_FRAME_LEN];
-    let mut stats = ServeStats::default();
-    loop {
-        let n = match reader.read(&mut rx) {
-            Ok(0) => return Ok(stats),
-            Ok(n) => n,
-            Err(e) if e.kind() == io::ErrorKind::Interrupted => continue,
-            Err(e) => return Err(e),
-        };
-        let mut window = rx.get(..n).unwrap_or(&[]);
-        loop {
-            let reply = match acc.feed(window) {
-                Feed::Consumed => break,
-                Feed::Frame { payload, remaining } => {
-                    window = remaining;
-                    match decode_frame::<ToKernel>(payload) {
-                        Ok(frame) => {
-                            stats.requests += 1;
-                            Frame {
-                                request_id: frame.request_id,
-                                body: firmware.handle(&frame.body),
-                            }
-                        }
-                        Err(e) => {
-                            stats.bad_frames += 1;
-                            Frame {
-                                request_id: e.request_id.unwrap_or(NO_REQUEST_ID),
-                                body: FromKernel::Error(e.error),
-                            }
-                        }
-                    }
-                }
-                Feed::Error { error, remaining } => {
-                    window = remaining;
-                    stats.bad_frames += 1;
-                    Frame {
-                        request_id: NO_REQUEST_ID,
-                        body: FromKernel::Error(error),
-                    }
-                }
-            };
-            let bytes = encode_frame(&reply, &mut tx)
-                .map_err(|e| io::Error::other(format!("reply does not fit a frame: {e}")))?;
-            writer.write_all(bytes)?;
-            stats.replies += 1;
-        }
-        writer.flush()?;
-    }
 }

@@ -24,7 +24,7 @@ use dips_kernel::prior::MarkovPrior;
 use dips_kernel::search::PaperPlanner;
 use dips_kernel::session::{SessionError, SessionLayout, plan_with_engines};
 use dips_kernel::wire_convert::PlanInputs;
-use dips_wire::{ModelFault, ModelRole, PlanReply, PlanRequest, RequestField, WireError};
+use dips_wire::{ModelFault, ModelRole, PlanRequest, RequestField, WireError};
 
 /// The prior and sampler a plan uses.
 #[derive(Debug, Clone, Copy)]
@@ -180,7 +180,7 @@ pub fn plan(
     request: &PlanRequest,
     config: &PlanConfig<'_>,
     clock: &mut impl Clock,
-) -> Result<PlanReply, WireError> {
+) -> Result<Planned, WireError> {
     let inputs =
         PlanInputs::from_request(request).map_err(|field| WireError::InvalidRequest { field })?;
     let den = model_info(ModelRole::Denoiser, denoiser)?;
@@ -226,5 +226,18 @@ pub fn plan(
         SessionError::Sampler(_) => rejected(ModelRole::Denoiser, ModelFault::WrongShape),
         SessionError::Scorer(_) => rejected(ModelRole::Discriminator, ModelFault::WrongShape),
     })?;
-    Ok(PlanReply::from(&report))
+    Ok(Planned {
+        report,
+        work_floats: split.total(),
+    })
+}
+
+/// A finished planning call: the search's report (the reply is made from it) and the work
+/// area it used.
+#[derive(Debug, Clone)]
+pub struct Planned {
+    /// The search's report.
+    pub report: dips_kernel::search::SearchReport,
+    /// Floats of the work area the call used.
+    pub work_floats: usize,
 }

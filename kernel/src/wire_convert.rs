@@ -189,6 +189,7 @@ impl From<ApproximateReason> for WireApproximate {
             ApproximateReason::Capacity(c) => WireApproximate::Capacity { capacity: c.into() },
             ApproximateReason::SamplerFailed => WireApproximate::SamplerFailed,
             ApproximateReason::ScorerFailed => WireApproximate::ScorerFailed,
+            ApproximateReason::Cancelled => WireApproximate::Cancelled,
         }
     }
 }
@@ -202,6 +203,7 @@ impl From<WireApproximate> for ApproximateReason {
             WireApproximate::Capacity { capacity } => ApproximateReason::Capacity(capacity.into()),
             WireApproximate::SamplerFailed => ApproximateReason::SamplerFailed,
             WireApproximate::ScorerFailed => ApproximateReason::ScorerFailed,
+            WireApproximate::Cancelled => ApproximateReason::Cancelled,
         }
     }
 }
@@ -427,6 +429,9 @@ pub fn sampler_from_settings(settings: &SamplerSettings) -> Result<SamplerConfig
             SamplingMethod::Ddpm { noise_factor }
         }
         SamplerMethod::Ddim { steps } if steps > 0 => SamplingMethod::Ddim { steps, eta: 0.0 },
+        SamplerMethod::DdimEta { steps, eta } if steps > 0 && (0.0..=1.0).contains(&eta) => {
+            SamplingMethod::Ddim { steps, eta }
+        }
         _ => return Err(RequestField::Sampler),
     };
     if !settings.guidance_weight.is_finite() {
@@ -436,6 +441,45 @@ pub fn sampler_from_settings(settings: &SamplerSettings) -> Result<SamplerConfig
         method,
         guidance_weight: settings.guidance_weight,
         ..SamplerConfig::default()
+    })
+}
+
+/// The `SetPrior` table of `prior` for `task` (`p(c₀)`, then one transition row per mode).
+/// `None` when the prior is not over the task's modes.
+pub fn table_from_prior(task: Task, prior: &MarkovPrior) -> Option<PriorTable> {
+    let m = task.mode_count();
+    if prior.modes() != m {
+        return None;
+    }
+    let mut probabilities = heapless::Vec::new();
+    for from in core::iter::once(None).chain((0..m).map(|i| Some(ModeId(i as u8)))) {
+        for to in 0..m {
+            probabilities
+                .push(prior.probability(from, ModeId(to as u8)))
+                .ok()?;
+        }
+    }
+    Some(PriorTable {
+        task: task.into(),
+        probabilities,
+    })
+}
+
+/// The `SetSampler` settings of a sampler configuration; `None` when it has a setting the
+/// wire does not carry (a `clip_denoised` other than the default: firmware always clips at
+/// [`crate::diffusion::DEFAULT_DENOISED_CLIP`]).
+pub fn settings_from_sampler(config: &SamplerConfig) -> Option<SamplerSettings> {
+    if config.clip_denoised.to_bits() != SamplerConfig::default().clip_denoised.to_bits() {
+        return None;
+    }
+    let method = match config.method {
+        SamplingMethod::Ddpm { noise_factor } => SamplerMethod::Ddpm { noise_factor },
+        SamplingMethod::Ddim { steps, eta: 0.0 } => SamplerMethod::Ddim { steps },
+        SamplingMethod::Ddim { steps, eta } => SamplerMethod::DdimEta { steps, eta },
+    };
+    Some(SamplerSettings {
+        method,
+        guidance_weight: config.guidance_weight,
     })
 }
 

@@ -106,12 +106,8 @@ fn run(args: &Args) -> Result<(), String> {
         },
     );
     let Some(addr) = &args.listen else {
-        let stats = serve(
-            &mut firmware,
-            std::io::stdin().lock(),
-            std::io::stdout().lock(),
-        )
-        .map_err(|e| format!("stdio: {e}"))?;
+        let stats = serve(&mut firmware, std::io::stdin(), std::io::stdout().lock())
+            .map_err(|e| format!("stdio: {e}"))?;
         report(&stats);
         return Ok(());
     };

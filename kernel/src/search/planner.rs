@@ -433,6 +433,10 @@ impl<const K: usize, const N: usize, const O: usize, const S: usize> Planner<K, 
                 stop = ApproximateReason::TimeBudget;
                 break;
             }
+            if clock.cancelled() {
+                stop = ApproximateReason::Cancelled;
+                break;
+            }
             if let Err(reason) = self.expand(
                 ctx, entry.node, &node, sampler, scorer, objective, &mut rng, stats,
             ) {

@@ -37,6 +37,8 @@ pub enum ApproximateReason {
     SamplerFailed,
     /// The scorer returned an error.
     ScorerFailed,
+    /// The clock reported a cancellation ([`crate::budget::Clock::cancelled`]).
+    Cancelled,
 }
 
 /// The outcome of a planning call.

@@ -44,6 +44,14 @@ pub enum SamplerMethod {
         /// Denoising steps, at least 1 and at most the model's training steps.
         steps: u16,
     },
+    /// DDIM over `steps` evenly spaced training steps with stochasticity `eta` in `[0, 1]`
+    /// (1 matches DDPM's variance; the hosts' default sampler `ddim:16:1`). Appended.
+    DdimEta {
+        /// Denoising steps, at least 1 and at most the model's training steps.
+        steps: u16,
+        /// Stochasticity η in `[0, 1]`.
+        eta: f32,
+    },
 }
 
 /// The diffusion sampler's settings, for every later plan request.

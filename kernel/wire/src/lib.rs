@@ -26,6 +26,7 @@ pub mod messages;
 pub mod plan;
 pub mod schema;
 pub mod size;
+pub mod status;
 pub mod upload;
 
 pub use config::{MAX_PRIOR_FLOATS, MAX_PRIOR_MODES, PriorTable, SamplerMethod, SamplerSettings};
@@ -40,6 +41,7 @@ pub use plan::{
     PlanRequest, PlanStats, PlanStatus, SearchSettings, SearchVariant, SettingsField, Task,
 };
 pub use schema::{PROTOCOL_VERSION, SCHEMA_KEY};
+pub use status::{FrameCounts, KernelStatus, LastPlan, MemoryUse, ModelIdentity};
 pub use upload::{
     MODEL_CHUNK_LEN, ModelAck, ModelAssembler, ModelBegin, ModelChunk, ModelLoaded, ModelRole,
     UploadError, UploadMessages, crc32, upload_messages,

@@ -6,6 +6,7 @@ use crate::config::{PriorTable, SamplerSettings};
 use crate::error::WireError;
 use crate::plan::{PlanReply, PlanRequest};
 use crate::size::MaxSize;
+use crate::status::KernelStatus;
 use crate::upload::{ModelAck, ModelBegin, ModelChunk, ModelLoaded};
 
 /// Every message on the wire travels in a frame; the kernel echoes `request_id` in replies.
@@ -73,6 +74,11 @@ pub enum ToKernel {
     SetPrior(PriorTable),
     /// Use these sampler settings for plans from now on.
     SetSampler(SamplerSettings),
+    /// Report the kernel's status ([`FromKernel::Status`]). Appended.
+    Status,
+    /// Stop the running plan at its next expansion (its reply then carries the best node so
+    /// far); answered [`FromKernel::Applied`], also when no plan is running. Appended.
+    Cancel,
 }
 
 /// Kernel → host messages. Append-only: never reorder, remove or change a variant.
@@ -88,8 +94,10 @@ pub enum FromKernel {
     ModelLoaded(ModelLoaded),
     /// The request (or the frame) was refused.
     Error(WireError),
-    /// A `SetPrior` or `SetSampler` took effect.
+    /// A `SetPrior`, `SetSampler` or `Cancel` took effect.
     Applied,
+    /// The answer to [`ToKernel::Status`]. Appended.
+    Status(KernelStatus),
 }
 
 /// A message enum of this protocol.
@@ -99,9 +107,9 @@ pub trait Message: Serialize + DeserializeOwned + MaxSize {
 }
 
 impl Message for ToKernel {
-    const VARIANT_COUNT: u32 = 7;
+    const VARIANT_COUNT: u32 = 9;
 }
 
 impl Message for FromKernel {
-    const VARIANT_COUNT: u32 = 6;
+    const VARIANT_COUNT: u32 = 7;
 }

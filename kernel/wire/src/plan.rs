@@ -131,6 +131,8 @@ pub enum ApproximateReason {
     SamplerFailed,
     /// The discriminator (or its model engine) failed.
     ScorerFailed,
+    /// A `Cancel` request stopped the search (appended).
+    Cancelled,
 }
 
 /// A capacity of the kernel's planner that a request needed more of (the wire copy of the

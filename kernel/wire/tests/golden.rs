@@ -51,6 +51,19 @@ fn canonical_to_kernel() -> std::vec::Vec<ToKernel> {
             method: SamplerMethod::Ddim { steps: 300 },
             guidance_weight: 1.2,
         }),
+        ToKernel::Status,
+        ToKernel::Cancel,
+    ]
+}
+
+/// Appended sampler methods, in a `SetSampler` (the first entry is the protocol-1 original).
+fn canonical_sampler_methods() -> std::vec::Vec<SamplerMethod> {
+    vec![
+        SamplerMethod::Ddpm { noise_factor: 0.5 },
+        SamplerMethod::DdimEta {
+            steps: 16,
+            eta: 1.0,
+        },
     ]
 }
 
@@ -93,6 +106,47 @@ fn canonical_from_kernel() -> std::vec::Vec<FromKernel> {
             host_schema_key: 4,
         }),
         FromKernel::Applied,
+        FromKernel::Status(KernelStatus {
+            denoiser: Some(ModelIdentity {
+                len_bytes: 1000,
+                crc32: 0xCBF4_3926,
+                task: Some(Task::Card),
+                horizon: 13,
+                state_dim: 12,
+                action_dim: 17,
+                fingers: 2,
+                diffusion_steps: 256,
+            }),
+            discriminator: None,
+            memory: MemoryUse {
+                model_capacity_bytes: 1 << 20,
+                models_bytes: 1000,
+                planner_bytes: 400_000,
+                work_floats: 1 << 18,
+                work_floats_used: 5000,
+            },
+            last_plan: Some(LastPlan {
+                request_id: 3,
+                status: PlanStatus::Approximate {
+                    reason: ApproximateReason::Cancelled,
+                },
+                elapsed_ms: 250,
+                nodes_expanded: 4,
+                segments_sampled: 192,
+                particles: 16,
+                effective_particles: 12.5,
+                expected_progress: -0.04,
+                terminal_cost: 4.0e-4,
+                cost_to_come: 120.0,
+                heuristic: 4.0,
+            }),
+            frames: FrameCounts {
+                requests: 10,
+                bad_frames: 2,
+                replies: 12,
+                cancelled_plans: 1,
+            },
+        }),
     ]
 }
 
@@ -138,7 +192,7 @@ fn canonical_errors() -> std::vec::Vec<WireError> {
     ]
 }
 
-const GOLDEN_TO_KERNEL: [&str; 7] = [
+const GOLDEN_TO_KERNEL: [&str; 9] = [
     "02070b01ef9bafcdf8acd1910100",
     "03070102040101023f010380bf01010101010d803f920a86bf10076666663f04401c46010d7a44cdcccc3d904ee0a7122a0103010200",
     "0b070201e807a6f2d0df0c00",
@@ -146,14 +200,17 @@ const GOLDEN_TO_KERNEL: [&str; 7] = [
     "03070400",
     "030705020c0103803f0101010101010101010101010101023f0101023f0101023f010101010101023f0101023f0101023f0101010100",
     "0a070601ac029a99993f00",
+    "03070700",
+    "03070800",
 ];
-const GOLDEN_FROM_KERNEL: [&str; 6] = [
+const GOLDEN_FROM_KERNEL: [&str; 7] = [
     "02070f01ef9bafcdf8acd191019c04800400",
     "05070103020301020103803e01010abf010107150707d20900",
     "030702058004e80700",
     "03070308e807a6f2d0df0c00",
     "080704040102030400",
     "03070500",
+    "13070601e807a6f2d0df0c01010d0c1102800218808040e80780b518808010882701030106fa0104c00110010b48410ad723bd17b7d1390103f042010780400a020c0100",
 ];
 const GOLDEN_ERRORS: [&str; 13] = [
     "0307040100",
@@ -170,7 +227,7 @@ const GOLDEN_ERRORS: [&str; 13] = [
     "0507040a0500",
     "0407040b0502ac020200",
 ];
-const GOLDEN_SCHEMA_KEY: u64 = 0xa8f8_def1_4013_f336;
+const GOLDEN_SCHEMA_KEY: u64 = 0x0179_12d0_4fe4_e273;
 
 #[test]
 fn schema_key_is_pinned() {
@@ -229,10 +286,11 @@ fn canonical_statuses() -> std::vec::Vec<PlanStatus> {
         PlanStatus::CapacityExceeded {
             capacity: PlanCapacity::Modes,
         },
+        approx(ApproximateReason::Cancelled),
     ]
 }
 
-const GOLDEN_STATUSES: [&str; 14] = [
+const GOLDEN_STATUSES: [&str; 15] = [
     "030701010101010101010100",
     "03070101020101010101010100",
     "03070101030101010101010100",
@@ -247,6 +305,7 @@ const GOLDEN_STATUSES: [&str; 14] = [
     "03070101030605010101010100",
     "030701010207010101010100",
     "03070101030805010101010100",
+    "03070101030106010101010100",
 ];
 
 #[test]
@@ -264,6 +323,26 @@ fn plan_status_golden_bytes() {
         })
         .collect();
     assert_eq!(actual, GOLDEN_STATUSES, "actual: {actual:#?}");
+}
+
+const GOLDEN_SAMPLER_METHODS: [&str; 2] =
+    ["030706010101063f9a99993f00", "05070602100107803f9a99993f00"];
+
+#[test]
+fn sampler_method_golden_bytes() {
+    let actual: std::vec::Vec<String> = canonical_sampler_methods()
+        .into_iter()
+        .map(|method| {
+            hex(&encode(
+                7,
+                ToKernel::SetSampler(SamplerSettings {
+                    method,
+                    guidance_weight: 1.2,
+                }),
+            ))
+        })
+        .collect();
+    assert_eq!(actual, GOLDEN_SAMPLER_METHODS, "actual: {actual:#?}");
 }
 
 #[test]

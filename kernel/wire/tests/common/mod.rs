@@ -82,6 +82,7 @@ pub fn approximate_extra() -> impl Strategy<Value = PlanStatus> {
         plan_capacity().prop_map(|capacity| ApproximateReason::Capacity { capacity }),
         Just(ApproximateReason::SamplerFailed),
         Just(ApproximateReason::ScorerFailed),
+        Just(ApproximateReason::Cancelled),
     ]
     .prop_map(|reason| PlanStatus::Approximate { reason })
 }
@@ -235,19 +236,85 @@ pub fn to_kernel() -> impl Strategy<Value = ToKernel> {
                 probabilities,
             })
         }),
-        (any::<bool>(), finite_f32(), any::<u16>(), finite_f32()).prop_map(
-            |(ddpm, noise_factor, steps, guidance_weight)| {
+        (0u8..3, finite_f32(), any::<u16>(), finite_f32()).prop_map(
+            |(kind, x, steps, guidance_weight)| {
                 ToKernel::SetSampler(SamplerSettings {
-                    method: if ddpm {
-                        SamplerMethod::Ddpm { noise_factor }
-                    } else {
-                        SamplerMethod::Ddim { steps }
+                    method: match kind {
+                        0 => SamplerMethod::Ddpm { noise_factor: x },
+                        1 => SamplerMethod::Ddim { steps },
+                        _ => SamplerMethod::DdimEta { steps, eta: x },
                     },
                     guidance_weight,
                 })
             }
         ),
+        Just(ToKernel::Status),
+        Just(ToKernel::Cancel),
     ]
+}
+
+pub fn model_identity() -> impl Strategy<Value = ModelIdentity> {
+    (
+        any::<u32>(),
+        any::<u32>(),
+        proptest::option::of(task()),
+        any::<[u16; 5]>(),
+    )
+        .prop_map(|(len_bytes, crc32, task, d)| ModelIdentity {
+            len_bytes,
+            crc32,
+            task,
+            horizon: d[0],
+            state_dim: d[1],
+            action_dim: d[2],
+            fingers: d[3],
+            diffusion_steps: d[4],
+        })
+}
+
+pub fn kernel_status() -> impl Strategy<Value = KernelStatus> {
+    (
+        proptest::option::of(model_identity()),
+        proptest::option::of(model_identity()),
+        any::<[u32; 5]>(),
+        proptest::option::of((
+            any::<[u32; 4]>(),
+            plan_status(),
+            any::<u8>(),
+            proptest::array::uniform5(finite_f32()),
+        )),
+        any::<[u32; 4]>(),
+    )
+        .prop_map(|(denoiser, discriminator, m, last, f)| KernelStatus {
+            denoiser,
+            discriminator,
+            memory: MemoryUse {
+                model_capacity_bytes: m[0],
+                models_bytes: m[1],
+                planner_bytes: m[2],
+                work_floats: m[3],
+                work_floats_used: m[4],
+            },
+            last_plan: last.map(|(n, status, particles, x)| LastPlan {
+                request_id: n[0],
+                status,
+                elapsed_ms: n[1],
+                nodes_expanded: n[2],
+                segments_sampled: n[3],
+                particles,
+                effective_particles: x[0],
+                expected_progress: x[1],
+                terminal_cost: x[2],
+                cost_to_come: x[3],
+                heuristic: x[4],
+            }),
+            frames: FrameCounts {
+                requests: f[0],
+                bad_frames: f[1],
+                replies: f[2],
+                cancelled_plans: f[3],
+            },
+        })
 }
 
 pub fn from_kernel() -> impl Strategy<Value = FromKernel> {
@@ -277,6 +344,7 @@ pub fn from_kernel() -> impl Strategy<Value = FromKernel> {
         }),
         wire_error().prop_map(FromKernel::Error),
         Just(FromKernel::Applied),
+        kernel_status().prop_map(FromKernel::Status),
     ]
 }
 
