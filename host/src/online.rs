@@ -33,7 +33,7 @@ use crate::execute::{
 };
 use crate::hand::Hand;
 use crate::kinematics::HandModel;
-use crate::planning::{Models, PaperSession, StdClock, sample_trajectories};
+use crate::planning::{Models, PaperSession, PlanService, StdClock, sample_trajectories};
 use crate::problems::contract::{contract_state, from_contract};
 use crate::problems::{AllegroProblem, Mode, ProblemSpec};
 use crate::scenes::SceneKind;
@@ -230,7 +230,7 @@ fn search_config(
 /// One planning call from the hand's state.
 #[allow(clippy::too_many_arguments)]
 fn plan_call<H: Hand + ?Sized>(
-    session: &mut PaperSession,
+    planner: &mut dyn PlanService,
     prior: MarkovPrior,
     method: Method,
     hand: &H,
@@ -256,7 +256,15 @@ fn plan_call<H: Hand + ?Sized>(
     spec.executed = executed.last().map(|m| m.id());
     spec.check().map_err(|e| anyhow!("planning call: {e}"))?;
     let t0 = Instant::now();
-    let report = session.plan(&spec, &mut StdClock(t0))?;
+    let report = planner
+        .plan_call(&spec, &mut StdClock(t0))
+        .with_context(|| {
+            format!(
+                "planning before mode {} ({})",
+                executed.len() + 1,
+                planner.location()
+            )
+        })?;
     let seconds = t0.elapsed().as_secs_f64();
     let modes: Vec<Mode> = report
         .modes
@@ -273,8 +281,8 @@ fn plan_call<H: Hand + ?Sized>(
             .iter()
             .map(|&v| v.is_finite().then_some(v))
             .collect(),
-        nodes_expanded: report.stats.nodes_expanded,
-        segments_sampled: report.stats.segments_sampled,
+        nodes_expanded: report.nodes_expanded,
+        segments_sampled: report.segments_sampled,
         particles: report.particles,
         effective_particles: report
             .effective_particles
@@ -286,13 +294,16 @@ fn plan_call<H: Hand + ?Sized>(
 }
 
 /// Run one episode of `method` on `hand` from its current state. `models` is needed by every
-/// method but `csvto-sampled`; the prior is the models' fitted one, else the paper's.
+/// method but `csvto-sampled`; the prior is the models' fitted one, else the paper's. The
+/// planning calls go to `remote` when given (a kernel over the wire, `dips-link`), else to a
+/// session in this process over `models`; the models also sample CSVTO's initialisation.
 #[allow(clippy::too_many_arguments)]
 pub fn run_online<H: Hand + ?Sized>(
     hand: &mut H,
     method: Method,
     seed: u64,
     models: Option<Models>,
+    mut remote: Option<&mut dyn PlanService>,
     exec: &ExecSettings,
     settings: &OnlineSettings,
     progress: &mut dyn FnMut(&str),
@@ -370,8 +381,10 @@ pub fn run_online<H: Hand + ?Sized>(
     let stop = settings.max_modes.map_or(limit, |m| m.min(limit));
     while executed.len() < stop {
         if method.searches() && (method != Method::DipsNoReplan || plans.is_empty()) {
-            let Some(session) = session.as_mut() else {
-                bail!("method `{}` needs the diffusion models", method.name());
+            let planner: &mut dyn PlanService = match (remote.as_deref_mut(), session.as_mut()) {
+                (Some(r), _) => r,
+                (None, Some(s)) => s,
+                (None, None) => bail!("method `{}` needs the diffusion models", method.name()),
             };
             let depth = match scene {
                 SceneKind::Screwdriver => SCREWDRIVER_MODES,
@@ -383,7 +396,7 @@ pub fn run_online<H: Hand + ?Sized>(
             ));
             let call_seed = seed.wrapping_mul(1000).wrapping_add(plans.len() as u64);
             let (modes, record) = plan_call(
-                session, prior, method, hand, &executed, depth, settings, call_seed,
+                planner, prior, method, hand, &executed, depth, settings, call_seed,
             )?;
             progress(&format!(
                 "  {} in {:.1} s: {}",

@@ -6,6 +6,10 @@
 //! A [`Session`] keeps its models, planner and work area across calls, so a replanning loop
 //! builds it once and calls [`Session::plan`] with a new [`PlanSpec`] (start, goal, executed
 //! mode, seed) each time.
+//!
+//! Where a plan is made is a [`PlanService`]: the session in this process, or a kernel over
+//! the wire (`dips-link`: `dips-firmware-sim` spawned or reached over TCP). Both answer with
+//! the same [`PlanOutcome`], bit for bit for the same call.
 
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -14,9 +18,10 @@ use anyhow::{Context, bail};
 use dips_kernel::budget::Clock;
 use dips_kernel::diffusion::SamplerConfig;
 use dips_kernel::engine::DenoiserEngine;
+use dips_kernel::mode::ModeId;
 use dips_kernel::mode::Task;
 use dips_kernel::prior::MarkovPrior;
-use dips_kernel::search::{PaperPlanner, Planner, SearchReport};
+use dips_kernel::search::{PaperPlanner, Planner, SearchReport, SearchStatus};
 use dips_kernel::session::{PlanSpec, SessionError, SessionLayout, plan_with_engines};
 use dips_onnx::{AnyEngine, EngineKind, Expectation, Role};
 
@@ -317,6 +322,75 @@ pub(crate) fn load_model(
     }
     AnyEngine::load(kind, &file, &Expectation::new(role, task.name()))
         .with_context(|| format!("loading {}", file.display()))
+}
+
+/// What a planning call answers, wherever it ran: the fields of the kernel's
+/// [`SearchReport`] that the CLI and the online loop record.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PlanOutcome {
+    /// How the search ended.
+    pub status: SearchStatus,
+    /// The planned modes after the executed one.
+    pub modes: Vec<ModeId>,
+    /// The expected (particle-mean) raw state at the plan's end.
+    pub terminal_state: Vec<f32>,
+    /// The expected progress there (screwdriver yaw in rad, card y in m).
+    pub expected_progress: f32,
+    /// Nodes expanded.
+    pub nodes_expanded: u32,
+    /// Nodes created, the root included.
+    pub nodes_generated: u32,
+    /// Sampler calls.
+    pub sampler_calls: u32,
+    /// Scorer (discriminator) calls.
+    pub scorer_calls: u32,
+    /// Segments sampled.
+    pub segments_sampled: u32,
+    /// Particles at the plan's terminal node.
+    pub particles: u8,
+    /// Their effective number.
+    pub effective_particles: f32,
+}
+
+impl From<&SearchReport> for PlanOutcome {
+    fn from(r: &SearchReport) -> Self {
+        Self {
+            status: r.status,
+            modes: r.modes.to_vec(),
+            terminal_state: r.terminal_state.to_vec(),
+            expected_progress: r.expected_progress,
+            nodes_expanded: r.stats.nodes_expanded,
+            nodes_generated: r.stats.nodes_generated,
+            sampler_calls: r.stats.sampler_calls,
+            scorer_calls: r.stats.scorer_calls,
+            segments_sampled: r.stats.segments_sampled,
+            particles: r.particles,
+            effective_particles: r.effective_particles,
+        }
+    }
+}
+
+/// Something that makes plans: the in-process [`Session`], or a kernel over the wire.
+pub trait PlanService {
+    /// Plan `spec`; `clock` is read before every expansion (in process) or for progress
+    /// (over the wire, where the kernel keeps its own time).
+    fn plan_call(&mut self, spec: &PlanSpec, clock: &mut dyn Clock) -> anyhow::Result<PlanOutcome>;
+
+    /// Where the plans are made, for messages and result files (`in-process`,
+    /// `firmware-sim (spawned)`, `tcp://HOST:PORT`).
+    fn location(&self) -> String;
+}
+
+impl<const K: usize, const N: usize, const O: usize, const S: usize> PlanService
+    for Session<K, N, O, S>
+{
+    fn plan_call(&mut self, spec: &PlanSpec, clock: &mut dyn Clock) -> anyhow::Result<PlanOutcome> {
+        Ok(PlanOutcome::from(&self.plan(spec, &mut &mut *clock)?))
+    }
+
+    fn location(&self) -> String {
+        "in-process".into()
+    }
 }
 
 /// A planning session over loaded models: planner (capacities `K, N, O, S`, by default the

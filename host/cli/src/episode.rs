@@ -8,11 +8,12 @@ use clap::Args;
 
 use dips_host::execute::ExecSettings;
 use dips_host::online::{Method, OnlineSettings, run_online};
-use dips_host::planning::{Models, models_dir};
+use dips_host::planning::{Models, PlanService, models_dir};
 use dips_host::problems::Mode;
 use dips_host::problems::mode::parse_mode;
 use dips_host::scenes::SceneKind;
 use dips_host::world::World;
+use dips_link::{KernelTarget, RemotePlanner};
 
 use crate::model::EngineArg;
 
@@ -69,6 +70,10 @@ pub struct EpisodeArgs {
     /// Also write the episode's animation (`episode.gif`), shown in `report.html`.
     #[arg(long)]
     pub render: bool,
+    /// Where the planning calls are made: `in-process`, `spawn` (a `dips-firmware-sim`
+    /// child), `spawn:PATH` or `tcp://HOST:PORT`. The result is the same bit for bit.
+    #[arg(long, default_value = "in-process", value_parser = KernelTarget::parse)]
+    pub kernel: KernelTarget,
 }
 
 /// Run the command.
@@ -117,11 +122,24 @@ pub fn run(args: EpisodeArgs) -> anyhow::Result<()> {
     let exec = ExecSettings::for_task(task);
     let mut world = World::new(task);
     let mut progress = |line: &str| eprintln!("{line}");
+    let link = if method.searches() {
+        args.kernel.open()?
+    } else {
+        None
+    };
+    let mut remote = match (link, &models) {
+        (Some(link), Some(m)) => {
+            eprintln!("planning through {}", link.name());
+            Some(RemotePlanner::new(link, &m.dir, task.task())?)
+        }
+        _ => None,
+    };
     let result = run_online(
         &mut world,
         method,
         args.seed,
         models,
+        remote.as_mut().map(|r| r as &mut dyn PlanService),
         &exec,
         &settings,
         &mut progress,

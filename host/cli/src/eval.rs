@@ -5,6 +5,7 @@ use std::path::PathBuf;
 
 use anyhow::Context;
 use clap::Args;
+use dips_link::KernelTarget;
 
 use dips_datagen::Shard;
 use dips_eval::{EvalSettings, run_eval, summarize};
@@ -58,6 +59,11 @@ pub struct EvalArgs {
     /// Most node expansions per planning call (0: the planner's capacity).
     #[arg(long, default_value_t = 0)]
     pub node_budget: u32,
+    /// Where the planning calls are made: `in-process`, `spawn` (a `dips-firmware-sim` child
+    /// per episode), `spawn:PATH` or `tcp://HOST:PORT` (with `--jobs 1`). The results are the
+    /// same bit for bit.
+    #[arg(long, default_value = "in-process", value_parser = KernelTarget::parse)]
+    pub kernel: KernelTarget,
     /// Stop each episode after this many modes (default: the task's 7 / 5).
     #[arg(long)]
     pub max_modes: Option<usize>,
@@ -138,6 +144,7 @@ pub fn run(args: EvalArgs) -> anyhow::Result<()> {
         engine: args.engine.into(),
         progress: !args.quiet,
         stop_after: None,
+        kernel: args.kernel.clone(),
     };
     let report = run_eval(&settings, &args.out)?;
     eprintln!(

@@ -19,10 +19,14 @@ use dips_kernel::session::PlanSpec;
 use dips_onnx::EngineKind;
 use serde_json::json;
 
-use dips_host::planning::{Models, PaperSession, ProgressClock, models_dir};
+use dips_host::planning::{
+    Models, PaperSession, PlanOutcome, PlanService, ProgressClock, models_dir,
+};
 use dips_host::problems::contract::contract_state;
 use dips_host::scenes::SceneKind;
 use dips_host::world::World;
+use dips_kernel::budget::NoClock;
+use dips_link::{KernelTarget, RemotePlanner};
 
 /// Which engine runs the models.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
@@ -75,6 +79,10 @@ pub struct PlanArgs {
     /// how many expansions fit a time budget.
     #[arg(long)]
     pub threads: Option<usize>,
+    /// Where the plan is made: `in-process`, `spawn` (a `dips-firmware-sim` child),
+    /// `spawn:PATH` or `tcp://HOST:PORT`. The plan is the same bit for bit.
+    #[arg(long, default_value = "in-process", value_parser = KernelTarget::parse)]
+    pub kernel: KernelTarget,
 }
 
 /// The search settings of `dips plan`: the task's own ([`SearchConfig::for_task`]: the
@@ -157,27 +165,35 @@ pub fn run(args: PlanArgs) -> anyhow::Result<()> {
         }
         None => "paper",
     };
-    let mut session = PaperSession::new(models);
     let t0 = Instant::now();
-    // A line on stderr every second of a long call (stdout stays the result).
-    let budget = args.time_budget_s;
-    let mut tell = |s: f64, reads: u64| {
-        eprintln!(
-            "planning: {s:.0} s, {} expansions started (budget {budget} s)",
-            reads.saturating_sub(1)
-        );
+    let report: PlanOutcome = match args.kernel.open()? {
+        Some(link) => {
+            eprintln!("planning through {}", link.name());
+            let mut remote = RemotePlanner::new(link, &dir, task)?;
+            remote.plan_call(&spec, &mut NoClock)?
+        }
+        None => {
+            let mut session = PaperSession::new(models);
+            // A line on stderr every second of a long call (stdout stays the result).
+            let budget = args.time_budget_s;
+            let mut tell = |s: f64, reads: u64| {
+                eprintln!(
+                    "planning: {s:.0} s, {} expansions started (budget {budget} s)",
+                    reads.saturating_sub(1)
+                );
+            };
+            PlanOutcome::from(&session.plan(
+                &spec,
+                &mut ProgressClock::start(std::time::Duration::from_secs(1), &mut tell),
+            )?)
+        }
     };
-    let report = session.plan(
-        &spec,
-        &mut ProgressClock::start(std::time::Duration::from_secs(1), &mut tell),
-    )?;
     let planning_s = t0.elapsed().as_secs_f64();
     let names: Vec<&str> = report
         .modes
         .iter()
         .map(|m| task.mode_name(*m).unwrap_or("?"))
         .collect();
-    let s = &report.stats;
     let out = json!({
         "task": task.name(),
         "seed": args.seed,
@@ -201,13 +217,14 @@ pub fn run(args: PlanArgs) -> anyhow::Result<()> {
         "expected_progress": finite_or_null(report.expected_progress),
         "terminal_state": report.terminal_state.iter().map(|&v| finite_or_null(v)).collect::<Vec<_>>(),
         "stats": {
-            "nodes_expanded": s.nodes_expanded,
-            "nodes_generated": s.nodes_generated,
-            "sampler_calls": s.sampler_calls,
-            "scorer_calls": s.scorer_calls,
-            "segments_sampled": s.segments_sampled,
+            "nodes_expanded": report.nodes_expanded,
+            "nodes_generated": report.nodes_generated,
+            "sampler_calls": report.sampler_calls,
+            "scorer_calls": report.scorer_calls,
+            "segments_sampled": report.segments_sampled,
         },
         "planning_s": planning_s,
+        "kernel": args.kernel.to_string(),
     });
     crate::output::figures(args.json, &out)?;
     Ok(())

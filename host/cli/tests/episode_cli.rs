@@ -377,3 +377,113 @@ fn the_diffusion_policy_baseline_acts_from_the_state_alone_with_the_shipped_mode
     assert!(String::from_utf8_lossy(&o.stderr).contains("no contact modes"));
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// The `dips-firmware-sim` binary (built here when the test run did not build it).
+fn firmware_sim() -> std::path::PathBuf {
+    if let Ok(p) = dips_link::find_firmware() {
+        return p;
+    }
+    let mut build = Command::new(env!("CARGO"));
+    build.args(["build", "-p", "dips-firmware-sim"]);
+    if !cfg!(debug_assertions) {
+        build.arg("--release");
+    }
+    assert!(build.status().expect("run cargo").success());
+    dips_link::find_firmware().expect("dips-firmware-sim after building it")
+}
+
+/// A result file without its wall times (`*_s`, `seconds`), which no two runs share.
+fn without_times(v: &mut serde_json::Value) {
+    match v {
+        serde_json::Value::Object(map) => {
+            map.retain(|k, _| !(k.ends_with("_s") || k == "seconds"));
+            map.values_mut().for_each(without_times);
+        }
+        serde_json::Value::Array(items) => items.iter_mut().for_each(without_times),
+        _ => {}
+    }
+}
+
+#[test]
+fn a_dips_episode_planned_by_a_spawned_firmware_is_the_in_process_episode_bit_for_bit() {
+    let firmware = firmware_sim();
+    let run = |name: &str, kernel: &[&str]| {
+        let dir = temp_dir(name);
+        let out = dips()
+            .args([
+                "episode", "--task", "card", "--method", "dips", "--seed", "8",
+            ])
+            .args([
+                "--sampler",
+                "ddim:4",
+                "--node-budget",
+                "2",
+                "--time-budget-s",
+                "0",
+            ])
+            .args(["--max-modes", "2"])
+            .args(kernel)
+            .arg("--out")
+            .arg(&dir)
+            .output()
+            .expect("run dips");
+        let err = String::from_utf8_lossy(&out.stderr).to_string();
+        assert!(out.status.success(), "{err}");
+        let text = std::fs::read_to_string(dir.join("result.json")).unwrap();
+        let mut v: serde_json::Value = serde_json::from_str(&text).unwrap();
+        without_times(&mut v);
+        (v, err)
+    };
+    let (local, _) = run("local", &[]);
+    let spawn = format!("spawn:{}", firmware.display());
+    let (remote, err) = run("spawned", &["--kernel", &spawn]);
+    assert!(err.contains("planning through dips-firmware-sim"), "{err}");
+    assert_eq!(remote, local);
+    assert_eq!(local["plans"].as_array().unwrap().len(), 2);
+}
+
+#[test]
+fn a_firmware_that_dies_mid_episode_is_an_error_naming_the_last_request() {
+    let firmware = firmware_sim();
+    // The firmware lives for 5 s: long enough to greet, take the models and plan the first
+    // mode, not long enough for the episode's five (about 30 s).
+    let script = temp_dir("dying").with_extension("sh");
+    std::fs::write(
+        &script,
+        format!("#!/bin/sh\nexec timeout 5 {}\n", firmware.display()),
+    )
+    .unwrap();
+    let mut perm = std::fs::metadata(&script).unwrap().permissions();
+    std::os::unix::fs::PermissionsExt::set_mode(&mut perm, 0o755);
+    std::fs::set_permissions(&script, perm).unwrap();
+    let t0 = std::time::Instant::now();
+    let out = dips()
+        .args([
+            "episode", "--task", "card", "--method", "dips", "--seed", "8",
+        ])
+        .args([
+            "--sampler",
+            "ddim:4",
+            "--node-budget",
+            "2",
+            "--time-budget-s",
+            "0",
+        ])
+        .arg("--kernel")
+        .arg(format!("spawn:{}", script.display()))
+        .arg("--out")
+        .arg(temp_dir("dying-out"))
+        .output()
+        .expect("run dips");
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("planning call 1"),
+        "the first plan was made: {err}"
+    );
+    assert!(
+        err.contains("closed the link while PlanRequest") && err.contains("planning before mode"),
+        "{err}"
+    );
+    assert!(t0.elapsed() < std::time::Duration::from_secs(120));
+}

@@ -10,8 +10,9 @@ use anyhow::{Context, anyhow};
 use dips_host::atomic_write::write_atomic;
 use dips_host::execute::ExecSettings;
 use dips_host::online::{Method, run_online};
-use dips_host::planning::Models;
+use dips_host::planning::{Models, PlanService};
 use dips_host::world::World;
+use dips_link::RemotePlanner;
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use serde::{Deserialize, Serialize};
 
@@ -92,11 +93,26 @@ fn run_episode(
         let mut progress = |line: &str| {
             let _ = writeln!(log, "[{:8.1} s] {line}", t0.elapsed().as_secs_f64());
         };
+        // A kernel over the wire for the methods that plan (one link per episode).
+        let link = if method.searches() {
+            settings.kernel.open()?
+        } else {
+            None
+        };
+        let mut remote = match link {
+            Some(link) => Some(RemotePlanner::new(
+                link,
+                &settings.models,
+                settings.task.task(),
+            )?),
+            None => None,
+        };
         run_online(
             &mut world,
             method,
             seed,
             models,
+            remote.as_mut().map(|r| r as &mut dyn PlanService),
             &exec,
             &settings.online,
             &mut progress,

@@ -7,6 +7,7 @@ use dips_datagen::Shard;
 use dips_host::online::{Method, OnlineSettings};
 use dips_host::planning::parse_sampler;
 use dips_host::scenes::SceneKind;
+use dips_link::KernelTarget;
 use dips_onnx::EngineKind;
 use serde::{Deserialize, Serialize};
 
@@ -59,6 +60,9 @@ pub struct EvalSettings {
     pub progress: bool,
     /// Stop after this many new episodes (tests simulate a kill with it).
     pub stop_after: Option<usize>,
+    /// Where the planning calls are made (`--kernel`); the results are the same bit for bit,
+    /// so it is not part of [`EpisodeSettings`].
+    pub kernel: KernelTarget,
 }
 
 impl EvalSettings {
@@ -94,6 +98,12 @@ impl EvalSettings {
             bail!("--max-modes must be at least 1");
         }
         parse_sampler(&self.sampler)?;
+        if matches!(self.kernel, KernelTarget::Tcp(_)) && self.jobs > 1 {
+            bail!(
+                "--kernel {}: a TCP kernel serves one connection at a time; use --jobs 1, or                  --kernel spawn (one firmware per episode)",
+                self.kernel
+            );
+        }
         Ok(())
     }
 

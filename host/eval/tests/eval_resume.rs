@@ -40,6 +40,7 @@ fn settings(methods: Vec<Method>, trials: usize) -> EvalSettings {
         engine: EngineKind::Kernel,
         progress: false,
         stop_after: None,
+        kernel: dips_link::KernelTarget::InProcess,
     }
 }
 
