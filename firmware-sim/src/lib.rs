@@ -27,8 +27,9 @@ use dips_kernel::search::{ApproximateReason, PaperPlanner, SearchReport, SearchS
 use dips_kernel::wire_convert::{PlanInputs, prior_from_table, sampler_from_settings};
 use dips_wire::{
     FrameCounts, FromKernel, Hello, HelloAck, KernelStatus, LastPlan, MAX_ENCODED_FRAME_LEN,
-    MODEL_CHUNK_LEN, MemoryUse, ModelAssembler, ModelIdentity, ModelRole, PROTOCOL_VERSION,
-    PlanReply, PlanRequest, PlanStatus, SCHEMA_KEY, ToKernel, UploadError, WireError,
+    MODEL_CHUNK_LEN, MemoryUse, ModelAck, ModelAssembler, ModelBegin, ModelIdentity, ModelLoaded,
+    ModelRole, PROTOCOL_VERSION, PlanReply, PlanRequest, PlanStatus, SCHEMA_KEY, ToKernel,
+    UploadError, WireError,
 };
 use planning::{MonotonicClock, PlanMemory};
 
@@ -40,12 +41,39 @@ pub const MODEL_CAPACITY_BYTES: usize = 32 * 1024 * 1024;
 /// about 2 M floats; see [`planning::PlanMemory`].
 pub const WORK_FLOATS: usize = 16 * 1024 * 1024;
 
+/// A loaded model's buffer: the bytes of the last upload of its role that passed every check.
+#[derive(Debug)]
+struct ModelSlot<'m> {
+    buf: &'m mut [u8],
+    /// Length and CRC-32 of the model it holds, `None` before the first.
+    held: Option<(usize, u32)>,
+}
+
+impl<'m> ModelSlot<'m> {
+    fn new(buf: &'m mut [u8]) -> Self {
+        Self { buf, held: None }
+    }
+
+    fn bytes(&self) -> Option<&[u8]> {
+        self.held.and_then(|(len, _)| self.buf.get(..len))
+    }
+
+    fn capacity_bytes(&self) -> u32 {
+        u32::try_from(self.buf.len()).unwrap_or(u32::MAX)
+    }
+}
+
 /// The controller's request handler and its state.
+///
+/// An upload is assembled in a staging buffer and checked (length, CRC, then the model's own
+/// header and weights) before it replaces the model of its role, so a broken, restarted,
+/// abandoned or refused upload leaves the model in use as it was.
 #[derive(Debug)]
 pub struct Firmware<'m> {
     greeted: bool,
-    denoiser: ModelAssembler<'m>,
-    discriminator: ModelAssembler<'m>,
+    denoiser: ModelSlot<'m>,
+    discriminator: ModelSlot<'m>,
+    staging: ModelAssembler<'m>,
     active_upload: Option<ModelRole>,
     planning: Option<PlanMemory<'m>>,
     clock: MonotonicClock,
@@ -69,14 +97,20 @@ fn task_slot(task: Task) -> usize {
 }
 
 impl<'m> Firmware<'m> {
-    /// A firmware that stores uploaded models in the two given buffers (their lengths are
-    /// the largest models accepted) and has no memory to plan in: plan requests are
-    /// checked, then answered with [`WireError::PlannerUnavailable`].
-    pub fn new(denoiser_buf: &'m mut [u8], discriminator_buf: &'m mut [u8]) -> Self {
+    /// A firmware that keeps its models in the two given buffers, assembles uploads in
+    /// `staging_buf` (the largest model accepted is the smallest of the three), and has no
+    /// memory to plan in: plan requests are checked, then answered with
+    /// [`WireError::PlannerUnavailable`].
+    pub fn new(
+        denoiser_buf: &'m mut [u8],
+        discriminator_buf: &'m mut [u8],
+        staging_buf: &'m mut [u8],
+    ) -> Self {
         Self {
             greeted: false,
-            denoiser: ModelAssembler::new(denoiser_buf),
-            discriminator: ModelAssembler::new(discriminator_buf),
+            denoiser: ModelSlot::new(denoiser_buf),
+            discriminator: ModelSlot::new(discriminator_buf),
+            staging: ModelAssembler::new(staging_buf),
             active_upload: None,
             planning: None,
             clock: MonotonicClock::new(),
@@ -88,16 +122,16 @@ impl<'m> Firmware<'m> {
         }
     }
 
-    /// A firmware that stores uploaded models in the two buffers and plans with them in
-    /// `memory`.
+    /// A firmware as [`Self::new`] that plans with its models in `memory`.
     pub fn with_planning(
         denoiser_buf: &'m mut [u8],
         discriminator_buf: &'m mut [u8],
+        staging_buf: &'m mut [u8],
         memory: PlanMemory<'m>,
     ) -> Self {
         Self {
             planning: Some(memory),
-            ..Self::new(denoiser_buf, discriminator_buf)
+            ..Self::new(denoiser_buf, discriminator_buf, staging_buf)
         }
     }
 
@@ -105,9 +139,10 @@ impl<'m> Firmware<'m> {
     /// progress is abandoned. Loaded models stay loaded.
     pub fn reset_session(&mut self) {
         self.greeted = false;
-        if let Some(role) = self.active_upload.take() {
-            // Ending an unfinished upload discards it (the error is the point).
-            let _ = self.assembler_mut(role).end();
+        if self.active_upload.take().is_some() {
+            // Ending an unfinished upload discards it (the error is the point); the models in
+            // use are untouched.
+            let _ = self.staging.end();
         }
     }
 
@@ -116,23 +151,59 @@ impl<'m> Firmware<'m> {
         self.greeted
     }
 
-    /// The loaded model of a role (its bytes, CRC-checked).
+    /// The loaded model of a role (its bytes, CRC-checked and accepted by the interpreter).
     pub fn model(&self, role: ModelRole) -> Option<&[u8]> {
-        self.assembler(role).model().map(|(_, bytes)| bytes)
+        self.slot(role).bytes()
     }
 
-    fn assembler(&self, role: ModelRole) -> &ModelAssembler<'m> {
+    fn slot(&self, role: ModelRole) -> &ModelSlot<'m> {
         match role {
             ModelRole::Denoiser => &self.denoiser,
             ModelRole::Discriminator => &self.discriminator,
         }
     }
 
-    fn assembler_mut(&mut self, role: ModelRole) -> &mut ModelAssembler<'m> {
-        match role {
+    /// Start an upload into the staging buffer (any upload in progress is abandoned).
+    fn begin_upload(&mut self, begin: &ModelBegin) -> Result<ModelAck, WireError> {
+        self.active_upload = None;
+        let capacity = self.slot(begin.role).capacity_bytes();
+        if begin.total_len_bytes > capacity {
+            let _ = self.staging.end();
+            return Err(UploadError::TooLarge {
+                total_len_bytes: begin.total_len_bytes,
+                capacity_bytes: capacity.min(self.staging.capacity_bytes()),
+            }
+            .into());
+        }
+        let ack = self.staging.begin(begin)?;
+        self.active_upload = Some(begin.role);
+        Ok(ack)
+    }
+
+    /// Finish the upload: length and CRC ([`ModelAssembler::end`]), then the model's own
+    /// checks ([`planning::model_info`]); only then does it replace the model of its role.
+    fn end_upload(&mut self) -> Result<ModelLoaded, WireError> {
+        let role = self.active_upload.take().ok_or(UploadError::NotStarted)?;
+        let loaded = self.staging.end()?;
+        let Some((_, bytes)) = self.staging.model() else {
+            return Err(UploadError::NotStarted.into());
+        };
+        planning::model_info(role, bytes)?;
+        let slot = match role {
             ModelRole::Denoiser => &mut self.denoiser,
             ModelRole::Discriminator => &mut self.discriminator,
-        }
+        };
+        let capacity_bytes = slot.capacity_bytes();
+        let dest = slot
+            .buf
+            .get_mut(..bytes.len())
+            .ok_or(UploadError::TooLarge {
+                total_len_bytes: loaded.len_bytes,
+                capacity_bytes,
+            })?;
+        dest.copy_from_slice(bytes);
+        slot.held = Some((bytes.len(), loaded.crc32));
+        Ok(loaded)
     }
 
     /// Answer one request (no link: a plan cannot be cancelled; request id 0).
@@ -173,8 +244,8 @@ impl<'m> Firmware<'m> {
     /// What `Status` answers: the loaded models, memory, the last plan, frame counts.
     pub fn status(&self) -> KernelStatus {
         let identity = |role| {
-            let (_, bytes) = self.assembler(role).model()?;
-            Some(model_identity(bytes, self.assembler(role).model_crc32()?))
+            let slot = self.slot(role);
+            Some(model_identity(slot.bytes()?, slot.held?.1))
         };
         let models_bytes = [ModelRole::Denoiser, ModelRole::Discriminator]
             .iter()
@@ -185,7 +256,11 @@ impl<'m> Firmware<'m> {
             denoiser: identity(ModelRole::Denoiser),
             discriminator: identity(ModelRole::Discriminator),
             memory: MemoryUse {
-                model_capacity_bytes: self.denoiser.capacity_bytes(),
+                model_capacity_bytes: self
+                    .denoiser
+                    .capacity_bytes()
+                    .min(self.discriminator.capacity_bytes())
+                    .min(self.staging.capacity_bytes()),
                 models_bytes: u32::try_from(models_bytes).unwrap_or(u32::MAX),
                 planner_bytes: self.planning.as_ref().map_or(0, |_| {
                     u32::try_from(core::mem::size_of::<PaperPlanner>()).unwrap_or(u32::MAX)
@@ -216,22 +291,12 @@ impl<'m> Firmware<'m> {
         match request {
             ToKernel::Hello(_) => Err(WireError::HandshakeRequired),
             ToKernel::PlanRequest(plan) => self.plan(request_id, plan, clock),
-            ToKernel::ModelBegin(begin) => {
-                self.active_upload = Some(begin.role);
-                let result = self.assembler_mut(begin.role).begin(begin);
-                if result.is_err() {
-                    self.active_upload = None;
-                }
-                Ok(FromKernel::ModelAck(result?))
-            }
+            ToKernel::ModelBegin(begin) => Ok(FromKernel::ModelAck(self.begin_upload(begin)?)),
             ToKernel::ModelChunk(chunk) => {
-                let role = self.active_upload.ok_or(UploadError::NotStarted)?;
-                Ok(FromKernel::ModelAck(self.assembler_mut(role).chunk(chunk)?))
+                self.active_upload.ok_or(UploadError::NotStarted)?;
+                Ok(FromKernel::ModelAck(self.staging.chunk(chunk)?))
             }
-            ToKernel::ModelEnd => {
-                let role = self.active_upload.take().ok_or(UploadError::NotStarted)?;
-                Ok(FromKernel::ModelLoaded(self.assembler_mut(role).end()?))
-            }
+            ToKernel::ModelEnd => Ok(FromKernel::ModelLoaded(self.end_upload()?)),
             ToKernel::SetPrior(table) => {
                 let (task, prior) =
                     prior_from_table(table).map_err(|field| WireError::InvalidRequest { field })?;
@@ -345,9 +410,6 @@ fn last_plan(request_id: u32, report: &SearchReport, reply: &PlanReply) -> LastP
 }
 
 /// The bytes of a loaded model, or the error naming the missing one.
-fn loaded<'a>(assembler: &'a ModelAssembler<'_>, role: ModelRole) -> Result<&'a [u8], WireError> {
-    assembler
-        .model()
-        .map(|(_, bytes)| bytes)
-        .ok_or(WireError::ModelNotLoaded { role })
+fn loaded<'a>(slot: &'a ModelSlot<'_>, role: ModelRole) -> Result<&'a [u8], WireError> {
+    slot.bytes().ok_or(WireError::ModelNotLoaded { role })
 }

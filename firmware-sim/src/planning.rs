@@ -88,7 +88,7 @@ fn saturating_u32(n: usize) -> u32 {
 }
 
 /// Parse a blob and check that it is a model of `role`.
-fn model_info(role: ModelRole, blob: &[u8]) -> Result<ModelInfo, WireError> {
+pub fn model_info(role: ModelRole, blob: &[u8]) -> Result<ModelInfo, WireError> {
     let info = parse(blob).map_err(|_| rejected(role, ModelFault::Invalid))?;
     let expected = match role {
         ModelRole::Denoiser => DENOISER_ROLE,

@@ -49,7 +49,8 @@ fn replies(bytes: &[u8]) -> Vec<Frame<FromKernel>> {
 fn run(input: &[u8], model_capacity: usize, trickle: bool) -> (Vec<Frame<FromKernel>>, ServeStats) {
     let mut den = vec![0u8; model_capacity];
     let mut dis = vec![0u8; model_capacity];
-    let mut fw = Firmware::new(&mut den, &mut dis);
+    let mut stage = vec![0u8; model_capacity];
+    let mut fw = Firmware::new(&mut den, &mut dis, &mut stage);
     let mut output = Vec::new();
     let stats = if trickle {
         serve(
@@ -144,16 +145,36 @@ fn session_with_uploads_and_garbage() {
             .map(|f| f.request_id)
             .collect();
         assert_eq!(ids, expected_ids);
-        let loaded: Vec<&ModelLoaded> = out
+        // The uploads arrive whole and CRC-checked, but they are not models: each is refused
+        // at its end by the interpreter's checks and never becomes the model in use.
+        let rejected: Vec<&FromKernel> = out
             .iter()
-            .filter_map(|f| match &f.body {
-                FromKernel::ModelLoaded(l) => Some(l),
-                _ => None,
-            })
+            .map(body_of)
+            .filter(|b| matches!(b, FromKernel::Error(WireError::ModelRejected { .. })))
             .collect();
-        assert_eq!(loaded.len(), 2);
-        assert_eq!(loaded[0].crc32, crc32(&denoiser));
-        assert_eq!(loaded[1].len_bytes, 700);
+        assert_eq!(
+            rejected,
+            vec![
+                &FromKernel::Error(WireError::ModelRejected {
+                    role: ModelRole::Denoiser,
+                    fault: ModelFault::Invalid
+                }),
+                &FromKernel::Error(WireError::ModelRejected {
+                    role: ModelRole::Discriminator,
+                    fault: ModelFault::Invalid
+                }),
+            ]
+        );
+        assert!(
+            !out.iter()
+                .any(|f| matches!(f.body, FromKernel::ModelLoaded(_)))
+        );
+        let acks = out
+            .iter()
+            .filter(|f| matches!(f.body, FromKernel::ModelAck(_)))
+            .count();
+        // Begin + 6 chunks for 3000 bytes, begin + 2 chunks for 700.
+        assert_eq!(acks, 7 + 3);
         let plan_replies: Vec<&FromKernel> = out
             .iter()
             .filter(|f| f.request_id == 100 || f.request_id == 101)
@@ -163,9 +184,11 @@ fn session_with_uploads_and_garbage() {
             plan_replies,
             vec![
                 &FromKernel::Error(WireError::ModelNotLoaded {
-                    role: ModelRole::Discriminator
+                    role: ModelRole::Denoiser
                 }),
-                &FromKernel::Error(WireError::PlannerUnavailable),
+                &FromKernel::Error(WireError::ModelNotLoaded {
+                    role: ModelRole::Denoiser
+                }),
             ]
         );
     }

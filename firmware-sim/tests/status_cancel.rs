@@ -118,9 +118,11 @@ fn status_names_the_models_memory_and_frames_and_cancel_stops_a_running_plan() {
     let (mut den_buf, mut disc_buf) = (vec![0u8; 4 << 20], vec![0u8; 4 << 20]);
     let mut planner = Box::new(PaperPlanner::new());
     let mut work = vec![0.0f32; 4_000_000];
+    let mut stage = vec![0u8; den_buf.len()];
     let mut firmware = Firmware::with_planning(
         &mut den_buf,
         &mut disc_buf,
+        &mut stage,
         PlanMemory {
             planner: &mut planner,
             work: &mut work,
@@ -193,7 +195,8 @@ fn status_names_the_models_memory_and_frames_and_cancel_stops_a_running_plan() {
 #[test]
 fn a_cancel_with_no_plan_running_is_applied_and_changes_nothing() {
     let (mut den_buf, mut disc_buf) = (vec![0u8; 1024], vec![0u8; 1024]);
-    let mut firmware = Firmware::new(&mut den_buf, &mut disc_buf);
+    let mut stage = vec![0u8; 1024];
+    let mut firmware = Firmware::new(&mut den_buf, &mut disc_buf, &mut stage);
     let input = frames(
         1,
         [

@@ -234,9 +234,11 @@ fn binary_plans_with_models_uploaded_over_stdio() {
     let (mut den_buf, mut disc_buf) = (vec![0u8; 4 << 20], vec![0u8; 4 << 20]);
     let mut planner = Box::new(PaperPlanner::new());
     let mut work = vec![0.0f32; 4_000_000];
+    let mut stage = vec![0u8; den_buf.len()];
     let mut firmware = Firmware::with_planning(
         &mut den_buf,
         &mut disc_buf,
+        &mut stage,
         PlanMemory {
             planner: &mut planner,
             work: &mut work,

@@ -126,9 +126,11 @@ fn configured_session(
     let mut disc_buf = vec![0u8; MODEL_CAPACITY];
     let mut planner = Box::new(PaperPlanner::new());
     let mut work = vec![0.0f32; work_floats];
+    let mut stage = vec![0u8; den_buf.len()];
     let mut firmware = Firmware::with_planning(
         &mut den_buf,
         &mut disc_buf,
+        &mut stage,
         PlanMemory {
             planner: &mut planner,
             work: &mut work,
@@ -151,6 +153,36 @@ fn configured_session(
         assert!(!matches!(reply, FromKernel::Error(_)), "setup: {reply:?}");
     }
     all[setup..].to_vec()
+}
+
+/// Hello, the two uploads, then `then`; every reply, the uploads' included.
+fn raw_session(
+    denoiser: &[u8],
+    discriminator: &[u8],
+    work_floats: usize,
+    then: &[ToKernel],
+) -> Vec<FromKernel> {
+    let mut den_buf = vec![0u8; MODEL_CAPACITY];
+    let mut disc_buf = vec![0u8; MODEL_CAPACITY];
+    let mut stage = vec![0u8; MODEL_CAPACITY];
+    let mut planner = Box::new(PaperPlanner::new());
+    let mut work = vec![0.0f32; work_floats];
+    let mut firmware = Firmware::with_planning(
+        &mut den_buf,
+        &mut disc_buf,
+        &mut stage,
+        PlanMemory {
+            planner: &mut planner,
+            work: &mut work,
+        },
+    );
+    let mut messages = vec![ToKernel::Hello(Hello::current())];
+    messages.extend(upload_messages(ModelRole::Denoiser, denoiser).unwrap());
+    messages.extend(upload_messages(ModelRole::Discriminator, discriminator).unwrap());
+    messages.extend(then.iter().cloned());
+    let mut out = Vec::new();
+    serve(&mut firmware, Cursor::new(frames(messages)), &mut out).unwrap();
+    replies(&out)
 }
 
 /// The same request planned in-process with the kernel engines over the same blobs, the
@@ -281,23 +313,37 @@ fn models_the_firmware_cannot_run_are_refused_with_typed_errors() {
         FromKernel::Error(e) => *e,
         other => panic!("expected an error, got {other:?}"),
     };
-    // Bytes with a correct CRC that are not a lowered model.
+    // Bytes with a correct CRC that are not a lowered model, and the two models uploaded in
+    // each other's place: refused at the upload's end, so no denoiser is loaded.
     let junk = vec![7u8; 1000];
-    assert_eq!(
-        error(session(&junk, &disc, WORK_FLOATS, &req)),
-        WireError::ModelRejected {
-            role: ModelRole::Denoiser,
-            fault: ModelFault::Invalid
-        }
-    );
-    // The models uploaded in each other's place.
-    assert_eq!(
-        error(session(&disc, &den, WORK_FLOATS, &req)),
-        WireError::ModelRejected {
-            role: ModelRole::Denoiser,
-            fault: ModelFault::WrongShape
-        }
-    );
+    for (d, c, fault) in [
+        (&junk, &disc, ModelFault::Invalid),
+        (&disc, &den, ModelFault::WrongShape),
+    ] {
+        let all = raw_session(d, c, WORK_FLOATS, &[ToKernel::PlanRequest(request(1))]);
+        let end_replies: Vec<&FromKernel> = all
+            .iter()
+            .filter(|r| {
+                matches!(
+                    r,
+                    FromKernel::ModelLoaded(_) | FromKernel::Error(WireError::ModelRejected { .. })
+                )
+            })
+            .collect();
+        assert_eq!(
+            end_replies[0],
+            &FromKernel::Error(WireError::ModelRejected {
+                role: ModelRole::Denoiser,
+                fault
+            })
+        );
+        assert_eq!(
+            all.last().unwrap(),
+            &FromKernel::Error(WireError::ModelNotLoaded {
+                role: ModelRole::Denoiser
+            })
+        );
+    }
     // A denoiser and a discriminator of different tasks.
     let card_disc = lowered(Task::Card, Role::Discriminator);
     assert_eq!(
@@ -319,6 +365,75 @@ fn models_the_firmware_cannot_run_are_refused_with_typed_errors() {
         } => assert!(needed_floats > capacity_floats && capacity_floats == 1000),
         other => panic!("{other:?}"),
     }
+}
+
+/// An upload that is refused, broken off, restarted or interleaved with plan requests never
+/// touches the model in use: every plan in between is the plan of the good models.
+#[test]
+fn a_refused_or_broken_upload_leaves_the_models_in_use() {
+    let den = lowered(Task::Screwdriver, Role::Denoiser);
+    let disc = lowered(Task::Screwdriver, Role::Discriminator);
+    let card_den = lowered(Task::Card, Role::Denoiser);
+    let plan = ToKernel::PlanRequest(request(2));
+    let good = plan_reply(&session(&den, &disc, WORK_FLOATS, &[request(2)])[0]);
+    let upload =
+        |role, bytes: &[u8]| -> Vec<ToKernel> { upload_messages(role, bytes).unwrap().collect() };
+    let junk_den = upload(ModelRole::Denoiser, &[9u8; 3000]);
+    let card = upload(ModelRole::Denoiser, &card_den);
+    let mut then = Vec::new();
+    // A junk model, refused at its end.
+    then.extend(junk_den.iter().cloned());
+    then.push(plan.clone());
+    // A denoiser upload broken off after two chunks, a plan request in the middle of it.
+    then.extend(card[..3].iter().cloned());
+    then.push(plan.clone());
+    // Restarted with a bad CRC: refused at its end.
+    let mut bad_crc = card.clone();
+    if let ToKernel::ModelBegin(b) = &mut bad_crc[0] {
+        b.crc32 ^= 1;
+    }
+    then.extend(bad_crc);
+    then.push(plan.clone());
+    // A chunk out of order, then an end: refused, nothing changes.
+    then.push(card[0].clone());
+    then.push(card[2].clone());
+    then.push(ToKernel::ModelEnd);
+    then.push(plan.clone());
+    let all = raw_session(&den, &disc, WORK_FLOATS, &then);
+    let plans: Vec<PlanReply> = all
+        .iter()
+        .filter_map(|r| match r {
+            FromKernel::PlanReply(p) => Some(without_time(p.clone())),
+            _ => None,
+        })
+        .collect();
+    assert_eq!(plans.len(), 4, "{all:?}");
+    for p in plans {
+        assert_eq!(p, without_time(good.clone()));
+    }
+    let errors: Vec<WireError> = all
+        .iter()
+        .filter_map(|r| match r {
+            FromKernel::Error(e) => Some(*e),
+            _ => None,
+        })
+        .collect();
+    assert!(errors.contains(&WireError::ModelRejected {
+        role: ModelRole::Denoiser,
+        fault: ModelFault::Invalid
+    }));
+    assert!(errors.iter().any(|e| matches!(
+        e,
+        WireError::Upload(dips_wire::UploadError::CrcMismatch { .. })
+    )));
+    assert!(errors.iter().any(|e| matches!(
+        e,
+        WireError::Upload(dips_wire::UploadError::BadOffset { .. })
+    )));
+    assert!(errors.iter().any(|e| matches!(
+        e,
+        WireError::Upload(dips_wire::UploadError::Incomplete { .. })
+    )));
 }
 
 #[test]

@@ -1,7 +1,7 @@
 //! `dips-firmware-sim`: serve the DIPS wire protocol on stdin/stdout or over TCP.
 //!
 //! Usage: `dips-firmware-sim [--listen ADDR] [--model-capacity-bytes N] [--work-floats N]`.
-//! The two model buffers (`MODEL_CAPACITY_BYTES` each), the planner and the planning work
+//! The two model buffers and the upload staging buffer (`MODEL_CAPACITY_BYTES` each), the planner and the planning work
 //! area (`WORK_FLOATS` floats) are static, zero-initialised memory that costs nothing until
 //! written; `--model-capacity-bytes` and `--work-floats` use only a prefix of them.
 //! Nothing is allocated while serving. With `--listen`, connections are served one after
@@ -18,6 +18,7 @@ use dips_kernel::search::PaperPlanner;
 
 static DENOISER: Mutex<[u8; MODEL_CAPACITY_BYTES]> = Mutex::new([0; MODEL_CAPACITY_BYTES]);
 static DISCRIMINATOR: Mutex<[u8; MODEL_CAPACITY_BYTES]> = Mutex::new([0; MODEL_CAPACITY_BYTES]);
+static STAGING: Mutex<[u8; MODEL_CAPACITY_BYTES]> = Mutex::new([0; MODEL_CAPACITY_BYTES]);
 static PLANNER: Mutex<PaperPlanner> = Mutex::new(PaperPlanner::new());
 static WORK: Mutex<[f32; WORK_FLOATS]> = Mutex::new([0.0; WORK_FLOATS]);
 
@@ -97,9 +98,11 @@ fn run(args: &Args) -> Result<(), String> {
     let mut discriminator = DISCRIMINATOR.lock().map_err(|_| "model buffer poisoned")?;
     let mut planner = PLANNER.lock().map_err(|_| "planner poisoned")?;
     let mut work = WORK.lock().map_err(|_| "work area poisoned")?;
+    let mut staging = STAGING.lock().map_err(|_| "model buffer poisoned")?;
     let mut firmware = Firmware::with_planning(
         &mut denoiser[..args.capacity],
         &mut discriminator[..args.capacity],
+        &mut staging[..args.capacity],
         PlanMemory {
             planner: &mut planner,
             work: &mut work[..args.work],

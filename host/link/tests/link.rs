@@ -110,9 +110,11 @@ fn a_remote_plan_is_the_in_process_plan_and_models_are_uploaded_once() {
     let (mut den, mut disc) = (vec![0u8; 8 << 20], vec![0u8; 8 << 20]);
     let mut planner = Box::new(PaperPlanner::new());
     let mut work = vec![0.0f32; 8_000_000];
+    let mut stage = vec![0u8; den.len()];
     let mut firmware = Firmware::with_planning(
         &mut den,
         &mut disc,
+        &mut stage,
         PlanMemory {
             planner: &mut planner,
             work: &mut work,
