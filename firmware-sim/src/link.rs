@@ -17,8 +17,7 @@ use dips_wire::{
     decode_frame, encode_frame,
 };
 
-use crate::Firmware;
-use crate::planning::MonotonicClock;
+use crate::{Firmware, MonotonicClock};
 
 /// Bytes read per call on the input.
 const READ_CHUNK_LEN: usize = 256;
@@ -123,14 +122,7 @@ impl Inbox {
 #[derive(Debug)]
 pub struct LinkClock<'a> {
     clock: MonotonicClock,
-    inbox: Option<&'a mut Inbox>,
-}
-
-impl LinkClock<'_> {
-    /// A clock that is never cancelled (requests handled without a link).
-    pub(crate) fn unlinked(clock: MonotonicClock) -> Self {
-        Self { clock, inbox: None }
-    }
+    inbox: &'a mut Inbox,
 }
 
 impl Clock for LinkClock<'_> {
@@ -139,13 +131,8 @@ impl Clock for LinkClock<'_> {
     }
 
     fn cancelled(&mut self) -> bool {
-        match self.inbox.as_deref_mut() {
-            Some(inbox) => {
-                inbox.drain();
-                inbox.holds_cancel()
-            }
-            None => false,
-        }
+        self.inbox.drain();
+        self.inbox.holds_cancel()
     }
 }
 
@@ -196,6 +183,7 @@ fn serve_inbox<W: Write>(
     let mut tx = [0u8; MAX_ENCODED_FRAME_LEN];
     let mut payload = [0u8; MAX_ENCODED_FRAME_LEN];
     let mut stats = ServeStats::default();
+    let clock = MonotonicClock::new();
     loop {
         if inbox.bytes.is_empty() && !inbox.fill() {
             return match inbox.failure.take() {
@@ -229,13 +217,10 @@ fn serve_inbox<W: Write>(
                 Ok(frame) => {
                     stats.requests += 1;
                     firmware.count_request();
-                    let mut clock = LinkClock {
-                        clock: firmware.clock,
-                        inbox: Some(inbox),
-                    };
+                    let mut clock = LinkClock { clock, inbox };
                     Frame {
                         request_id: frame.request_id,
-                        body: firmware.handle_with_clock(frame.request_id, &frame.body, &mut clock),
+                        body: firmware.handle(frame.request_id, &frame.body, &mut clock),
                     }
                 }
                 Err(e) => {

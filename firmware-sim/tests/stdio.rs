@@ -85,12 +85,28 @@ fn binary_serves_tcp_connections_one_after_another() {
     use std::io::{BufRead, BufReader, Read};
     use std::net::TcpStream;
 
-    let mut child = Command::new(env!("CARGO_BIN_EXE_dips-firmware-sim"))
-        .args(["--listen", "127.0.0.1:0", "--model-capacity-bytes", "4096"])
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
-    let mut stderr = BufReader::new(child.stderr.take().unwrap());
+    /// The child is killed however the test ends (a failed assertion must not leave a
+    /// listening server behind).
+    struct KillOnDrop(std::process::Child);
+    impl Drop for KillOnDrop {
+        fn drop(&mut self) {
+            let _ = self.0.kill();
+            let _ = self.0.wait();
+        }
+    }
+    let mut child = KillOnDrop(
+        Command::new(env!("CARGO_BIN_EXE_dips-firmware-sim"))
+            .args([
+                "--listen",
+                "127.0.0.1:0",
+                "--model-capacity-bytes",
+                "8388608",
+            ])
+            .stderr(Stdio::piped())
+            .spawn()
+            .unwrap(),
+    );
+    let mut stderr = BufReader::new(child.0.stderr.take().unwrap());
     let mut line = String::new();
     stderr.read_line(&mut line).unwrap();
     let addr = line
@@ -99,7 +115,14 @@ fn binary_serves_tcp_connections_one_after_another() {
         .expect(&line)
         .to_string();
 
-    let model = vec![3u8; 1500];
+    // A real (lowered) model: junk would be refused at its upload's end.
+    let model = dips_onnx::lower_file(
+        &std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+            .join("../onnx/tests/fixtures/torch-screwdriver-legacy/denoiser.onnx"),
+        &dips_onnx::Expectation::new(dips_onnx::Role::Denoiser, "screwdriver"),
+    )
+    .unwrap()
+    .blob;
     let exchange = |frames: Vec<(u32, ToKernel)>| -> Vec<Frame<FromKernel>> {
         let mut stream = TcpStream::connect(&addr).unwrap();
         let count = frames.len();
@@ -156,8 +179,7 @@ fn binary_serves_tcp_connections_one_after_another() {
             role: ModelRole::Discriminator
         })
     );
-    child.kill().unwrap();
-    child.wait().unwrap();
+    drop(child);
 }
 
 /// The binary, started as users start it, plans with models uploaded over stdio, exactly as

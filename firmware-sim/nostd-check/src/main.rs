@@ -417,9 +417,12 @@ fn self_test(line: &mut Line) -> Result<(), Failure> {
         "reply changed on the wire",
     )?;
 
+    firmware_session()?;
+
     let _ = write!(
         line,
-        "dips-nostd-check: kernel linked without std; plan found:"
+        "dips-nostd-check: kernel and firmware core linked without std; firmware session \
+         answered; plan found:"
     );
     for &m in &reply.modes {
         let name = Task::Card.mode_name(ModeId(m)).unwrap_or("?");
@@ -435,6 +438,33 @@ fn self_test(line: &mut Line) -> Result<(), Failure> {
         reply.stats.sampler_calls,
         reply.stats.discriminator_calls,
     );
+    Ok(())
+}
+
+/// The firmware core's request handler without std: greeting, an upload that is refused at
+/// its end (not a model), a plan request without models, the status.
+fn firmware_session() -> Result<(), Failure> {
+    use dips_firmware_core::Firmware;
+    use dips_wire::{Hello, ModelRole, WireError, upload_messages};
+    let (mut den, mut disc, mut stage) = ([0u8; 2048], [0u8; 2048], [0u8; 2048]);
+    let mut fw = Firmware::new(&mut den, &mut disc, &mut stage);
+    let mut clock = NoClock;
+    let hello = fw.handle(1, &ToKernel::Hello(Hello::current()), &mut clock);
+    check(matches!(hello, FromKernel::HelloAck(_)), "firmware: no HelloAck")?;
+    let junk = [7u8; 1500];
+    let mut last = FromKernel::Applied;
+    for m in upload_messages(ModelRole::Denoiser, &junk).ok_or(Failure("upload"))? {
+        last = fw.handle(2, &m, &mut clock);
+    }
+    check(
+        matches!(last, FromKernel::Error(WireError::ModelRejected { .. })),
+        "firmware: a junk model was not refused",
+    )?;
+    let status = fw.handle(3, &ToKernel::Status, &mut clock);
+    let FromKernel::Status(s) = status else {
+        return Err(Failure("firmware: no status"));
+    };
+    check(s.denoiser.is_none(), "firmware: junk became the model")?;
     Ok(())
 }
 

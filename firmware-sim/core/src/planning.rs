@@ -13,8 +13,6 @@
 //! over the model's diffusion steps, noise ×0.5, guidance 1.2). The prior is floored at the
 //! request's `p_min`.
 
-use std::time::Instant;
-
 use dips_kernel::budget::Clock;
 use dips_kernel::diffusion::SamplerConfig;
 use dips_kernel::nn::NnError;
@@ -50,33 +48,6 @@ pub struct PlanMemory<'m> {
     /// of `B ≤ modes·k` segments; with less memory the batch is split into smaller engine
     /// calls (same plan, more calls).
     pub work: &'m mut [f32],
-}
-
-/// Microseconds since the firmware started, from the monotonic clock.
-#[derive(Debug, Clone, Copy)]
-pub struct MonotonicClock {
-    origin: Instant,
-}
-
-impl MonotonicClock {
-    /// A clock starting now.
-    pub fn new() -> Self {
-        Self {
-            origin: Instant::now(),
-        }
-    }
-}
-
-impl Default for MonotonicClock {
-    fn default() -> Self {
-        Self::new()
-    }
-}
-
-impl Clock for MonotonicClock {
-    fn now_us(&mut self) -> u64 {
-        u64::try_from(self.origin.elapsed().as_micros()).unwrap_or(u64::MAX)
-    }
 }
 
 fn rejected(role: ModelRole, fault: ModelFault) -> WireError {
