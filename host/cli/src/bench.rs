@@ -39,6 +39,8 @@ pub enum BenchCommand {
     Csvto(super::bench_csvto::CsvtoBenchArgs),
     /// Wall time of real planning calls with the shipped models from the task's start.
     Plan(super::bench_plan::PlanBenchArgs),
+    /// Static memory, peak stack and wire overhead of the firmware with the shipped models.
+    Firmware(super::bench_firmware::FirmwareBenchArgs),
 }
 
 /// `dips bench search`.
@@ -77,6 +79,7 @@ pub fn run(args: BenchArgs) -> anyhow::Result<()> {
         BenchCommand::Sim(a) => super::bench_sim::main(a),
         BenchCommand::Csvto(a) => super::bench_csvto::run(a),
         BenchCommand::Plan(a) => super::bench_plan::run(&a),
+        BenchCommand::Firmware(a) => super::bench_firmware::run(&a),
     }
 }
 

@@ -4,6 +4,7 @@ use clap::{Parser, Subcommand};
 
 pub mod bench;
 pub mod bench_csvto;
+pub mod bench_firmware;
 pub mod bench_inference;
 pub mod bench_plan;
 pub mod bench_sim;
