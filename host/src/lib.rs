@@ -1,16 +1,13 @@
 //! `dips-host`: the std side of DIPS.
 
-pub mod atomic_write;
-pub mod csvto;
 pub mod execute;
-pub mod geometry;
-pub mod hand;
-pub mod kinematics;
 pub mod online;
 pub mod planning;
 pub mod policy;
 pub mod problems;
 pub mod quality;
-pub mod render;
-pub mod scenes;
-pub mod world;
+
+// The world and the generic solver are crates of their own (`dips-world`, `dips-csvto`); their
+// modules are re-exported here so that `dips_host::world::World` and the like stay the paths.
+pub use dips_csvto as csvto;
+pub use dips_world::{atomic_write, geometry, hand, kinematics, render, scenes, world};

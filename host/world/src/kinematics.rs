@@ -16,7 +16,7 @@ use nalgebra::{
 use serde::Deserialize;
 
 /// The default hand description, compiled in.
-pub const DEFAULT_HAND_JSON: &str = include_str!("../data/allegro_v4.json");
+pub const DEFAULT_HAND_JSON: &str = include_str!("../../data/allegro_v4.json");
 
 /// One finger of the hand. The discriminant is the finger's index in [`HandJoints`].
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
