@@ -143,7 +143,7 @@ fn engine_fault(role: ModelRole, e: NnError) -> WireError {
 ///
 /// Refusals are errors: a bad request field ([`WireError::InvalidRequest`]) or a model that
 /// cannot run ([`WireError::ModelRejected`]). Every outcome of the search, including models
-/// of another task ([`dips_wire::PlanStatus::InvalidProblem`]), is a [`PlanReply`].
+/// of another task ([`dips_wire::PlanStatus::InvalidProblem`]), is a [`dips_wire::PlanReply`] (made from the returned [`Planned`]).
 pub fn plan(
     memory: &mut PlanMemory<'_>,
     denoiser: &[u8],

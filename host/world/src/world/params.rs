@@ -1,4 +1,4 @@
-//! The world's physical and numerical parameters, checked by [`WorldParams::validate`].
+//! The world's physical and numerical parameters, checked by [`super::WorldParams::validate`].
 
 use super::WorldError;
 use serde::{Deserialize, Serialize};
@@ -25,7 +25,7 @@ pub struct WorldParams {
     pub mass_scale: f64,
     /// Contacts with signed distance up to this are candidates of the contact step (m).
     pub contact_margin: f64,
-    /// Which candidates get friction under [`FrictionModel::Anitescu`] ([`ConeActivation::All`]
+    /// Which candidates get friction under [`super::FrictionModel::Anitescu`] ([`ConeActivation::All`]
     /// for logs written before this field existed).
     #[serde(default = "legacy_cone_activation")]
     pub cone_activation: ConeActivation,
@@ -58,7 +58,7 @@ pub struct WorldParams {
     pub solver_max_iter: u32,
     /// How friction is formulated.
     pub friction_model: FrictionModel,
-    /// Most solves per sub-step for [`FrictionModel::Staggered`].
+    /// Most solves per sub-step for [`super::FrictionModel::Staggered`].
     pub staggered_iterations: usize,
     /// Staggered iterations stop when no normal force changes by more than
     /// `staggered_tolerance + staggered_relative_tolerance · max normal force` (N).
@@ -87,11 +87,11 @@ fn legacy_command_profile() -> CommandProfile {
     CommandProfile::Step
 }
 
-/// Which contact candidates get a friction cone under [`FrictionModel::Anitescu`].
+/// Which contact candidates get a friction cone under [`super::FrictionModel::Anitescu`].
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum ConeActivation {
-    /// Every candidate within [`WorldParams::contact_margin`] (the plain Anitescu model). A
+    /// Every candidate within [`super::WorldParams::contact_margin`] (the plain Anitescu model). A
     /// candidate that slides must separate by μ·slip, so a finger gliding past the object
     /// without pressing drags it along (`docs/world.md`).
     All,

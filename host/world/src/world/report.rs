@@ -23,7 +23,7 @@ pub enum StepFlag {
         change: f64,
     },
     /// Staggered friction did not settle and this sub-step used the Anitescu cone instead
-    /// ([`WorldParams::staggered_fallback`]).
+    /// ([`super::WorldParams::staggered_fallback`]).
     FrictionFallback {
         /// Sub-step index within the action.
         substep: usize,
@@ -93,7 +93,7 @@ pub enum WorldError {
     /// A world parameter is out of range.
     #[error("world parameter {name} = {value} is not allowed: it must be {allowed}")]
     Params {
-        /// Parameter name (a [`WorldParams`] field).
+        /// Parameter name (a [`super::WorldParams`] field).
         name: &'static str,
         /// The given value.
         value: f64,

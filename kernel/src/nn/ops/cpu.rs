@@ -1,7 +1,7 @@
 //! Wider vectors where the CPU has them, with the same results bit for bit.
 //!
 //! The hot op kernels are written once as plain loops that the compiler vectorizes. On x86
-//! the baseline is SSE2 (4 lanes); [`wide!`] compiles a second copy of a kernel with AVX2
+//! the baseline is SSE2 (4 lanes); `wide!` compiles a second copy of a kernel with AVX2
 //! enabled (8 lanes, 16 vector registers) and picks it at run time when the CPU reports AVX2
 //! (`cpufeatures`, no_std: CPUID and XGETBV, read once). FMA is not enabled, and Rust never
 //! fuses a multiply and an add on its own, so every sum is rounded in the same order in both
