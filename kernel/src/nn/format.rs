@@ -283,6 +283,89 @@ pub enum Op {
     },
 }
 
+/// One reference an [`Op`] holds: what it reads, writes, or takes as a constant.
+#[derive(Debug)]
+pub enum OpRef<'a> {
+    /// A per-sample activation it reads.
+    Reads(&'a mut Buf),
+    /// An operand it reads that may be an activation or a weight.
+    ReadsOperand(&'a mut Operand),
+    /// The activation it writes.
+    Writes(&'a mut Buf),
+    /// A constant weight range it reads.
+    Weight(&'a mut W),
+}
+
+impl Op {
+    /// Visit every buffer, operand and weight the op refers to, in field order, mutably. The
+    /// op's structure lives here once: the interpreter's checks, the lowering's arena
+    /// planning, remapping and weight compaction all go through it, so a new op adds its
+    /// fields here and its computation in the interpreter.
+    pub fn refs_mut<'a>(&'a mut self, mut f: impl FnMut(OpRef<'a>)) {
+        match self {
+            Op::Conv1d { x, y, w, b, .. } | Op::ConvTranspose1d { x, y, w, b, .. } => {
+                f(OpRef::Reads(x));
+                f(OpRef::Writes(y));
+                f(OpRef::Weight(w));
+                f(OpRef::Weight(b));
+            }
+            Op::Gemm { a, y, w, b, .. } => {
+                f(OpRef::Reads(a));
+                f(OpRef::Writes(y));
+                f(OpRef::Weight(w));
+                f(OpRef::Weight(b));
+            }
+            Op::InstanceNorm {
+                x, y, scale, bias, ..
+            } => {
+                f(OpRef::Reads(x));
+                f(OpRef::Writes(y));
+                f(OpRef::Weight(scale));
+                f(OpRef::Weight(bias));
+            }
+            Op::GroupNorm {
+                x, y, gamma, beta, ..
+            } => {
+                f(OpRef::Reads(x));
+                f(OpRef::Writes(y));
+                f(OpRef::Weight(gamma));
+                f(OpRef::Weight(beta));
+            }
+            Op::Unary { x, y, .. } | Op::ReduceMean { x, y, .. } => {
+                f(OpRef::Reads(x));
+                f(OpRef::Writes(y));
+            }
+            Op::Binary { a, b, y, .. } => {
+                f(OpRef::ReadsOperand(a));
+                f(OpRef::ReadsOperand(b));
+                f(OpRef::Writes(y));
+            }
+            Op::Copy { x, y, .. } => {
+                f(OpRef::ReadsOperand(x));
+                f(OpRef::Writes(y));
+            }
+            Op::Fill { y, .. } => f(OpRef::Writes(y)),
+        }
+    }
+
+    /// [`Self::refs_mut`] on a copy: visit without changing the op.
+    pub fn refs(&self, f: impl for<'r> FnMut(OpRef<'r>)) {
+        let mut copy = *self;
+        copy.refs_mut(f);
+    }
+
+    /// The activation the op writes.
+    pub fn output(&self) -> Buf {
+        let mut out = Buf { off: 0, len: 0 };
+        self.refs(|r| {
+            if let OpRef::Writes(b) = r {
+                out = *b;
+            }
+        });
+        out
+    }
+}
+
 /// Contract metadata carried by the blob (`docs/contracts.md` §3).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct Meta<'a> {

@@ -4,7 +4,7 @@
 //! activation; a value of `len` floats per sample at per-sample offset `off` occupies
 //! `[off·max_batch, (off+len)·max_batch)`, where `max_batch` is what the memory holds.
 
-use super::format::{Body, Buf, CHECKSUM, Header, MAGIC, MAX_INPUTS, Op, Operand, W};
+use super::format::{Body, Buf, CHECKSUM, Header, MAGIC, MAX_INPUTS, Op, OpRef, Operand, W};
 use super::ops::{self, OpSizeError};
 use super::{NnError, OpFault};
 use crate::engine::ModelDims;
@@ -108,24 +108,17 @@ pub fn op_temp_len(op: &Op) -> Result<usize, OpSizeError> {
 }
 
 fn op_refs_ok(op: &Op, arena: usize, n: usize) -> bool {
-    let io = |x: &Buf, y: &Buf| buf_ok(x, arena) && buf_ok(y, arena) && disjoint(x, y);
-    match op {
-        Op::Conv1d { x, y, w, b, .. }
-        | Op::ConvTranspose1d { x, y, w, b, .. }
-        | Op::Gemm { a: x, y, w, b, .. } => io(x, y) && w_ok(w, n) && w_ok(b, n),
-        Op::InstanceNorm {
-            x, y, scale, bias, ..
-        } => io(x, y) && w_ok(scale, n) && w_ok(bias, n),
-        Op::GroupNorm {
-            x, y, gamma, beta, ..
-        } => io(x, y) && w_ok(gamma, n) && w_ok(beta, n),
-        Op::Unary { x, y, .. } | Op::ReduceMean { x, y, .. } => io(x, y),
-        Op::Binary { a, b, y, .. } => {
-            buf_ok(y, arena) && operand_ok(a, arena, n, y) && operand_ok(b, arena, n, y)
-        }
-        Op::Copy { x, y, .. } => buf_ok(y, arena) && operand_ok(x, arena, n, y),
-        Op::Fill { y, .. } => buf_ok(y, arena),
-    }
+    let y = op.output();
+    let mut ok = buf_ok(&y, arena);
+    op.refs(|r| {
+        ok &= match r {
+            OpRef::Reads(x) => buf_ok(x, arena) && disjoint(x, &y),
+            OpRef::ReadsOperand(o) => operand_ok(o, arena, n, &y),
+            OpRef::Writes(_) => true,
+            OpRef::Weight(w) => w_ok(w, n),
+        };
+    });
+    ok
 }
 
 /// Decode and validate a blob: header, checksum, metadata, input/output layout and every op's

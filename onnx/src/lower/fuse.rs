@@ -5,7 +5,7 @@
 
 use std::collections::HashMap;
 
-use dips_kernel::nn::format::{BinaryFn, Op, Operand, UnaryFn, W};
+use dips_kernel::nn::format::{BinaryFn, Op, OpRef, Operand, UnaryFn, W};
 use tract_onnx::pb;
 
 use super::emit::Program;
@@ -163,23 +163,12 @@ pub(super) fn fuse_group_norm(p: &mut Program) {
 
 /// Every weight range an op references.
 fn weight_refs(op: &mut Op) -> Vec<&mut W> {
-    fn opw(o: &mut Operand) -> Option<&mut W> {
-        if let Operand::Weight(w) = o {
-            Some(w)
-        } else {
-            None
-        }
-    }
-    match op {
-        Op::Conv1d { w, b, .. } | Op::ConvTranspose1d { w, b, .. } | Op::Gemm { w, b, .. } => {
-            vec![w, b]
-        }
-        Op::InstanceNorm { scale, bias, .. } => vec![scale, bias],
-        Op::GroupNorm { gamma, beta, .. } => vec![gamma, beta],
-        Op::Binary { a, b, .. } => opw(a).into_iter().chain(opw(b)).collect(),
-        Op::Copy { x, .. } => opw(x).into_iter().collect(),
-        Op::Unary { .. } | Op::Fill { .. } | Op::ReduceMean { .. } => vec![],
-    }
+    let mut out = Vec::new();
+    op.refs_mut(|r| match r {
+        OpRef::Weight(w) | OpRef::ReadsOperand(Operand::Weight(w)) => out.push(w),
+        _ => {}
+    });
+    out
 }
 
 /// Drop weights no op references any more (the γ/β folded by the GroupNorm fusion), keeping

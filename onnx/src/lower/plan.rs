@@ -1,43 +1,19 @@
 //! Arena planning: give every activation storage a per-sample offset so that storages alive
 //! at the same time never overlap (greedy best-fit by decreasing size over live intervals).
 
-use dips_kernel::nn::format::{Buf, Op, Operand};
+use dips_kernel::nn::format::{Buf, Op, OpRef, Operand};
 
 pub(super) fn reads(op: &Op) -> Vec<Buf> {
-    let act = |o: &Operand| {
-        if let Operand::Act(b) = o {
-            Some(*b)
-        } else {
-            None
-        }
-    };
-    match op {
-        Op::Conv1d { x, .. }
-        | Op::ConvTranspose1d { x, .. }
-        | Op::InstanceNorm { x, .. }
-        | Op::GroupNorm { x, .. }
-        | Op::Unary { x, .. }
-        | Op::ReduceMean { x, .. } => vec![*x],
-        Op::Gemm { a, .. } => vec![*a],
-        Op::Binary { a, b, .. } => act(a).into_iter().chain(act(b)).collect(),
-        Op::Copy { x, .. } => act(x).into_iter().collect(),
-        Op::Fill { .. } => vec![],
-    }
+    let mut out = Vec::new();
+    op.refs(|r| match r {
+        OpRef::Reads(b) | OpRef::ReadsOperand(Operand::Act(b)) => out.push(*b),
+        _ => {}
+    });
+    out
 }
 
 pub(super) fn writes(op: &Op) -> Buf {
-    match op {
-        Op::Conv1d { y, .. }
-        | Op::ConvTranspose1d { y, .. }
-        | Op::InstanceNorm { y, .. }
-        | Op::GroupNorm { y, .. }
-        | Op::Unary { y, .. }
-        | Op::ReduceMean { y, .. }
-        | Op::Gemm { y, .. }
-        | Op::Binary { y, .. }
-        | Op::Copy { y, .. }
-        | Op::Fill { y, .. } => *y,
-    }
+    op.output()
 }
 
 /// Offsets per storage and the arena size per sample.

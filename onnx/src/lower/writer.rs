@@ -3,7 +3,7 @@
 use std::path::Path;
 
 use dips_kernel::nn::format::{
-    BLOB_VERSION, Body, Buf, CHECKSUM, Header, MAGIC, MAX_INPUTS, Meta, Op, Operand, W,
+    BLOB_VERSION, Body, Buf, CHECKSUM, Header, MAGIC, MAX_INPUTS, Meta, Op, OpRef, Operand, W,
 };
 
 use super::emit::Program;
@@ -52,36 +52,11 @@ fn remap(op: &Op, offsets: &[usize]) -> Op {
         off: offsets[b.off as usize] as u32,
         len: b.len,
     };
-    let mo = |o: &Operand| match o {
-        Operand::Act(b) => Operand::Act(m(b)),
-        w => *w,
-    };
     let mut op = *op;
-    match &mut op {
-        Op::Conv1d { x, y, .. }
-        | Op::ConvTranspose1d { x, y, .. }
-        | Op::InstanceNorm { x, y, .. }
-        | Op::GroupNorm { x, y, .. }
-        | Op::Unary { x, y, .. }
-        | Op::ReduceMean { x, y, .. } => {
-            *x = m(x);
-            *y = m(y);
-        }
-        Op::Gemm { a, y, .. } => {
-            *a = m(a);
-            *y = m(y);
-        }
-        Op::Binary { a, b, y, .. } => {
-            *a = mo(a);
-            *b = mo(b);
-            *y = m(y);
-        }
-        Op::Copy { x, y, .. } => {
-            *x = mo(x);
-            *y = m(y);
-        }
-        Op::Fill { y, .. } => *y = m(y),
-    }
+    op.refs_mut(|r| match r {
+        OpRef::Reads(b) | OpRef::Writes(b) | OpRef::ReadsOperand(Operand::Act(b)) => *b = m(b),
+        OpRef::ReadsOperand(Operand::Weight(_)) | OpRef::Weight(_) => {}
+    });
     op
 }
 
