@@ -171,27 +171,16 @@ impl RemotePlanner {
         Ok(())
     }
 
-    /// The plan request of `spec`; an error when the wire cannot say it (a screwdriver start
-    /// yaw unwrapped beyond what the goal implies).
+    /// The plan request of `spec` ([`PlanSpec::to_request`]); an error when the wire cannot
+    /// say it (a screwdriver start yaw unwrapped beyond what the goal implies).
     fn request_of(spec: &PlanSpec) -> anyhow::Result<PlanRequest> {
-        let goal = match spec.objective {
-            Objective::Screwdriver(o) => o.goal_yaw,
-            Objective::Card(o) => o.goal_y,
-        };
-        if Objective::for_goal(spec.task, &spec.start, goal) != Some(spec.objective) {
+        if Objective::for_goal(spec.task, &spec.start, spec.goal()) != Some(spec.objective) {
             bail!(
                 "this call's start yaw is unwrapped more than π from its goal; the wire's \
                  PlanRequest carries the goal only (plan it in-process)"
             );
         }
-        Ok(PlanRequest {
-            task: spec.task.into(),
-            start_state: heapless::Vec::from_slice(&spec.start)
-                .map_err(|_| anyhow!("the start state is too long for the wire"))?,
-            goal,
-            settings: spec.search.into(),
-            previous_mode: spec.executed.map(|m| m.0),
-        })
+        Ok(spec.to_request())
     }
 
     /// How long a plan may take before the link gives up on it.
