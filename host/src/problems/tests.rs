@@ -279,3 +279,53 @@ fn planner_geometry_matches_the_world_at_moved_object_poses() {
         }
     }
 }
+
+/// The row layout ([`AllegroProblem::step_rows`]) is what the fill writes: for every mode, at
+/// the first, a middle and the last step, with and without lift-off fingers, every counted
+/// row is written (none keeps its NaN) and none past the counts (that would panic), in
+/// release builds too, where the fill's `debug_assert`s are off.
+#[test]
+fn every_counted_row_is_written() {
+    let hand = HandModel::allegro_v4();
+    let modes = [
+        Mode::Turn,
+        Mode::IndexRegrasp,
+        Mode::ThumbMiddleRegrasp,
+        Mode::CardIndex,
+        Mode::CardMiddle,
+        Mode::CardBoth,
+        Mode::CardRegrasp,
+    ];
+    for (m, &mode) in modes.iter().enumerate() {
+        for lifted in [false, true] {
+            let mut s = spec(mode, 4);
+            if lifted {
+                s.start[2] -= 0.4;
+            }
+            let p = AllegroProblem::new(&hand, &s).expect("valid spec");
+            let x = perturbed(&p, mode, 50 + m as u64);
+            let (n, ds) = (p.row_dim(), p.state_dim());
+            for t in [0, 1, 3] {
+                let rows = p.step_rows(t);
+                assert_eq!((rows.eq, rows.ineq), (p.n_eq(t), p.n_ineq(t)));
+                let prev: Vec<f64> = if t == 0 {
+                    p.start_state().to_vec()
+                } else {
+                    x[(t - 1) * n..(t - 1) * n + ds].to_vec()
+                };
+                let mut sc = StepConstraints::default();
+                sc.reset(rows.eq, rows.ineq, ds + n);
+                sc.eq.fill(f64::NAN);
+                sc.ineq.fill(f64::NAN);
+                p.step_constraints(t, &prev, &x[t * n..(t + 1) * n], &mut sc);
+                for (what, v) in [("eq", &sc.eq), ("ineq", &sc.ineq)] {
+                    if let Some(r) = v.iter().position(|x| x.is_nan()) {
+                        panic!(
+                            "{mode:?} lifted {lifted} t={t}: {what} row {r} of {rows:?} unwritten"
+                        );
+                    }
+                }
+            }
+        }
+    }
+}

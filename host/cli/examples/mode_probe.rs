@@ -1,0 +1,135 @@
+//! What the models predict from the states an episode actually reached, beside what the
+//! world did (the screwdriver diagnosis in `docs/results/README.md`).
+//!
+//! For every executed mode of each `result.json` given (written by `dips episode` or
+//! `dips eval`), samples 64 segments of that mode from its executed start state, as the
+//! planner does (the default sampler `ddim:16:1`, the task's invariant angle) and prints:
+//! the executed and the mean diffused change of the task's progress coordinate (yaw in rad,
+//! card y in m), the mean first-step joint jump `‖q₁ − q₀‖` of the diffused segments (the
+//! model's start consistency), and Ψ's mean score and effective sample size over the 64.
+//!
+//! ```sh
+//! cargo run --release -p dips-cli --example mode_probe -- \
+//!     [--models DIR] target/eval-work/screwdriver/episodes/dips/seed-1009/result.json
+//! ```
+
+use std::path::PathBuf;
+
+use anyhow::{Context, bail};
+use dips_host::planning::{Models, models_dir, parse_sampler, sample_trajectories};
+use dips_kernel::diffusion::normalize::normalize_in_place;
+use dips_kernel::engine::DiscriminatorEngine;
+use dips_kernel::mode::{Task, TaskMode};
+use dips_kernel::rng::KernelRng;
+use dips_kernel::session::invariant_angle;
+
+/// Segments sampled per executed mode.
+const SAMPLES: usize = 64;
+
+fn main() -> anyhow::Result<()> {
+    let mut args = std::env::args().skip(1);
+    let mut models_arg = None;
+    let mut files = Vec::new();
+    while let Some(a) = args.next() {
+        if a == "--models" {
+            models_arg = Some(PathBuf::from(
+                args.next().context("--models needs a directory")?,
+            ));
+        } else {
+            files.push(PathBuf::from(a));
+        }
+    }
+    if files.is_empty() {
+        bail!("usage: mode_probe [--models DIR] RESULT.json ...");
+    }
+    let sampler = parse_sampler("ddim:16:1")?;
+    for file in files {
+        let text = std::fs::read_to_string(&file)
+            .with_context(|| format!("reading {}", file.display()))?;
+        let r: serde_json::Value = serde_json::from_str(&text)?;
+        let task = Task::from_name(r["task"].as_str().context("no task")?)
+            .map_err(|e| anyhow::anyhow!("{e:?}"))?;
+        let dir = models_dir(models_arg.as_deref(), task)?;
+        let mut models = Models::load(dips_onnx::EngineKind::Kernel, &dir, task)?;
+        let dims = task.dims();
+        let (td, d, sd, f) = (dims.floats(), dims.dim(), dims.state_dim, dims.fingers);
+        let h = dims.horizon - 1;
+        let layout = task.layout();
+        let progress = if task == Task::Screwdriver { 2 } else { 1 };
+        println!("{}:", file.display());
+        for run in r["mode_runs"].as_array().context("no mode_runs")? {
+            let name = run["mode"].as_str().context("mode")?;
+            let mode = TaskMode::from_name(task, name).map_err(|e| anyhow::anyhow!("{e:?}"))?;
+            let world: Vec<f32> = serde_json::from_value::<Vec<f64>>(run["start_state"].clone())?
+                .iter()
+                .map(|&v| v as f32)
+                .collect();
+            let end: Vec<f64> = serde_json::from_value(run["end_state"].clone())?;
+            let nq = world.len() - 3;
+            // The world's [q, o] with o's angle as (cos, sin), the models' raw state.
+            let mut state = world[..nq + 2].to_vec();
+            state.extend([world[nq + 2].cos(), world[nq + 2].sin()]);
+            if state.len() != sd {
+                bail!(
+                    "{name}: state of {} values, the models take {sd}",
+                    state.len()
+                );
+            }
+            let mut ctx = vec![0f32; f];
+            mode.contact_mode().write_signs(&mut ctx);
+            let context: Vec<f32> = ctx.iter().copied().cycle().take(SAMPLES * f).collect();
+            let starts: Vec<f32> = state.iter().copied().cycle().take(SAMPLES * sd).collect();
+            let mut rng = KernelRng::seed_from_u64(7);
+            let out = sample_trajectories(
+                &mut models.denoiser,
+                &sampler,
+                &context,
+                &starts,
+                invariant_angle(task),
+                &mut rng,
+            )?;
+            let pose = |row: &[f32]| layout.pose(row).unwrap_or([f32::NAN; 3])[progress];
+            let wrap = |a: f32| {
+                if task == Task::Screwdriver {
+                    dips_kernel::task::wrap_angle(a)
+                } else {
+                    a
+                }
+            };
+            let mut delta = 0.0;
+            let mut jump = 0.0;
+            for seg in out.chunks(td) {
+                delta += wrap(pose(&seg[h * d..]) - pose(seg));
+                jump += (0..nq)
+                    .map(|j| (seg[d + j] - seg[j]).powi(2))
+                    .sum::<f32>()
+                    .sqrt();
+            }
+            let mut x = out.clone();
+            normalize_in_place(&models.discriminator.normalization(), &mut x);
+            let mut psi = vec![0f32; SAMPLES];
+            models
+                .discriminator
+                .p_real(SAMPLES, &x, &context, &mut psi)
+                .map_err(|e| anyhow::anyhow!("Ψ: {e:?}"))?;
+            let sum: f32 = psi.iter().sum();
+            let ess = sum * sum
+                / psi
+                    .iter()
+                    .map(|p| p * p)
+                    .sum::<f32>()
+                    .max(f32::MIN_POSITIVE);
+            let executed = end[nq + progress] - f64::from(world[nq + progress]);
+            println!(
+                "  {name:22} start {:+.3}: executed {:+.3}, diffused {:+.3}; first-step joint jump {:.3}; Ψ {:.3} (ESS {:.1}/{SAMPLES})",
+                world[nq + progress],
+                executed,
+                delta / SAMPLES as f32,
+                jump / SAMPLES as f32,
+                sum / SAMPLES as f32,
+                ess
+            );
+        }
+    }
+    Ok(())
+}
