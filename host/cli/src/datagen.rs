@@ -31,6 +31,12 @@ pub struct DatagenArgs {
     /// This machine's part of the seeds, I/N (a job array's task index and count).
     #[arg(long, default_value = "0/1")]
     pub shard: Shard,
+    /// Where the demos' contact sequences come from: `pattern` (the paper's data: screwdriver
+    /// turn, then both regrasps in random order, repeated; card uniform) or `markov` (chains
+    /// drawn from the paper's Markov prior p(C), which hold every transition a plan can
+    /// choose). Use new seeds (`--first-seed`) when adding markov demos to a pattern dataset.
+    #[arg(long, default_value = "pattern")]
+    pub sequences: String,
     /// Demos run at once (default: the number of cores).
     #[arg(long)]
     pub jobs: Option<usize>,
@@ -78,6 +84,13 @@ pub fn run(args: DatagenArgs) -> anyhow::Result<()> {
         settings.jobs = j;
     }
     settings.first_seed = args.first_seed;
+    settings.sequences = dips_host::execute::SequenceSource::from_name(&args.sequences)
+        .with_context(|| {
+            format!(
+                "unknown --sequences {:?}; available: pattern, markov",
+                args.sequences
+            )
+        })?;
     settings.shard = args.shard;
     settings.progress = !args.quiet;
     let report = generate(&settings, &out)?;

@@ -11,8 +11,8 @@ use std::collections::BTreeMap;
 
 use dips_dataset::DemoRecord;
 use dips_host::execute::{
-    EpisodeResult, ExecError, ExecSettings, StepParticles, prior_sequence_for_seed,
-    run_episode_observed,
+    EpisodeResult, ExecError, ExecSettings, SequenceSource, StepParticles, run_episode_observed,
+    sequence_for_seed,
 };
 use dips_host::problems::Mode;
 use dips_host::problems::contract::{contract_dims, to_contract};
@@ -112,17 +112,19 @@ impl Recorder {
     }
 }
 
-/// Record demo `seed` of `task`: the prior's sequence for that seed
-/// ([`prior_sequence_for_seed`]), executed as `dips episode --method csvto-sampled --seed
-/// seed` executes it (same modes, same states, bit for bit), with every particle of every
-/// online step as a trajectory. `progress` receives the episode's per-step lines.
+/// Record demo `seed` of `task`: the sequence `sequences` gives that seed
+/// ([`sequence_for_seed`]; with [`SequenceSource::Pattern`] it is
+/// [`prior_sequence_for_seed`](dips_host::execute::prior_sequence_for_seed), executed as `dips episode --method csvto-sampled --seed seed`
+/// executes it: same modes, same states, bit for bit), with every particle of every online
+/// step as a trajectory. `progress` receives the episode's per-step lines.
 pub fn record_demo(
     task: SceneKind,
     seed: u64,
+    sequences: SequenceSource,
     settings: &ExecSettings,
     progress: &mut dyn FnMut(&str),
 ) -> Result<(DemoRecord, DemoOutcome), ExecError> {
-    let modes = prior_sequence_for_seed(task, seed);
+    let modes = sequence_for_seed(task, seed, sequences);
     let (ds, du) = contract_dims(task);
     let mut rec = Recorder {
         d: ds + du,
@@ -156,6 +158,7 @@ pub fn record_demo(
         "csvto_seconds".to_string(),
         format!("{:.3}", result.csvto_step_s.iter().sum::<f64>()),
     );
+    metadata.insert("sequences".to_string(), sequences.name().to_string());
     metadata.insert(
         "exec_settings".to_string(),
         serde_json::to_string(settings).unwrap_or_default(),

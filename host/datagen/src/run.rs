@@ -7,7 +7,7 @@ use std::sync::atomic::{AtomicUsize, Ordering};
 use std::time::Instant;
 
 use dips_dataset::{DatasetError, read_demo, write_demo};
-use dips_host::execute::{ExecError, ExecSettings};
+use dips_host::execute::{ExecError, ExecSettings, SequenceSource};
 use dips_host::scenes::SceneKind;
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use rayon::prelude::*;
@@ -32,6 +32,8 @@ pub struct DatagenSettings {
     pub shard: Shard,
     /// Demos run at once (each also spreads its particles over the cores).
     pub jobs: usize,
+    /// Where the demos' contact sequences come from (the paper's pattern by default).
+    pub sequences: SequenceSource,
     /// CSVTO and execution settings (the task's defaults).
     pub exec: ExecSettings,
     /// Draw a progress bar on stderr (hidden when stderr is not a terminal).
@@ -53,6 +55,7 @@ impl DatagenSettings {
             first_seed: 0,
             shard: Shard::ALL,
             jobs: std::thread::available_parallelism().map_or(2, |n| n.get()),
+            sequences: SequenceSource::Pattern,
             exec: ExecSettings::for_task(task),
             progress: true,
             stop_after: None,
@@ -143,9 +146,24 @@ pub fn generate(settings: &DatagenSettings, dir: &Path) -> Result<DatagenReport,
     let mut pending = Vec::new();
     for &seed in &seeds {
         let path = demo_path(dir, settings.task, seed);
-        // A file that does not read back (cut off by a full disk, say) is made again.
-        if !(path.exists() && read_demo(&path, kernel_task).is_ok()) {
-            pending.push(seed);
+        // A file that does not read back (cut off by a full disk, say) is made again; one
+        // made from other sequences is never taken for this run's.
+        match path.exists().then(|| read_demo(&path, kernel_task)) {
+            Some(Ok(demo)) => {
+                let made = demo
+                    .metadata
+                    .get("sequences")
+                    .map_or("pattern", String::as_str);
+                if made != settings.sequences.name() {
+                    return Err(DatagenError::Settings(format!(
+                        "{} was made with --sequences {made}, this run asks for {}; give \
+                         other seeds (--first-seed) or another --out",
+                        path.display(),
+                        settings.sequences.name()
+                    )));
+                }
+            }
+            _ => pending.push(seed),
         }
     }
     if let Some(n) = settings.stop_after {
@@ -184,19 +202,25 @@ pub fn generate(settings: &DatagenSettings, dir: &Path) -> Result<DatagenReport,
                 return;
             }
             let t0 = Instant::now();
-            let outcome = record_demo(settings.task, seed, &settings.exec, &mut |_| {})
-                .map_err(|source| DatagenError::Episode { seed, source })
-                .and_then(|(mut record, _)| {
-                    record
-                        .metadata
-                        .insert("git_revision".into(), GIT_REVISION.into());
-                    record.metadata.insert(
-                        "seconds".into(),
-                        format!("{:.3}", t0.elapsed().as_secs_f64()),
-                    );
-                    write_demo(&demo_path(dir, settings.task, seed), &record)
-                        .map_err(DatagenError::from)
-                });
+            let outcome = record_demo(
+                settings.task,
+                seed,
+                settings.sequences,
+                &settings.exec,
+                &mut |_| {},
+            )
+            .map_err(|source| DatagenError::Episode { seed, source })
+            .and_then(|(mut record, _)| {
+                record
+                    .metadata
+                    .insert("git_revision".into(), GIT_REVISION.into());
+                record.metadata.insert(
+                    "seconds".into(),
+                    format!("{:.3}", t0.elapsed().as_secs_f64()),
+                );
+                write_demo(&demo_path(dir, settings.task, seed), &record)
+                    .map_err(DatagenError::from)
+            });
             match outcome {
                 Ok(()) => {
                     done.fetch_add(1, Ordering::Relaxed);

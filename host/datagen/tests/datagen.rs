@@ -7,7 +7,9 @@ use std::path::Path;
 use dips_datagen::run::demo_path;
 use dips_datagen::{DatagenSettings, Shard, generate, index, record_demo};
 use dips_dataset::{DemoRecord, read_demo};
-use dips_host::execute::{ExecSettings, prior_sequence_for_seed, run_episode};
+use dips_host::execute::{
+    ExecSettings, SequenceSource, prior_sequence_for_seed, run_episode, sequence_for_seed,
+};
 use dips_host::scenes::SceneKind;
 use dips_kernel::mode::Task;
 
@@ -23,6 +25,7 @@ fn tiny(task: SceneKind, demos: usize) -> DatagenSettings {
         first_seed: 10,
         shard: Shard::ALL,
         jobs: 2,
+        sequences: SequenceSource::Pattern,
         exec,
         progress: false,
         stop_after: None,
@@ -105,7 +108,14 @@ fn without_time(mut m: dips_datagen::Manifest) -> dips_datagen::Manifest {
 #[test]
 fn a_demo_is_the_episode_of_its_seed_with_every_particle() {
     let s = tiny(SceneKind::Card, 1);
-    let (record, outcome) = record_demo(SceneKind::Card, 3, &s.exec, &mut |_| {}).unwrap();
+    let (record, outcome) = record_demo(
+        SceneKind::Card,
+        3,
+        dips_host::execute::SequenceSource::Pattern,
+        &s.exec,
+        &mut |_| {},
+    )
+    .unwrap();
     let modes = prior_sequence_for_seed(SceneKind::Card, 3);
     let episode = run_episode(
         SceneKind::Card,
@@ -155,6 +165,34 @@ fn a_demo_is_the_episode_of_its_seed_with_every_particle() {
         // The last row's control is zero.
         assert!(traj[(h * d + 12)..((h + 1) * d)].iter().all(|v| *v == 0.0));
     }
+}
+
+/// `--sequences markov` demos execute the seed's Markov chain and say so in their metadata; a
+/// run never takes a demo made from other sequences for its own (it stops and names the file).
+#[test]
+fn markov_demos_are_their_chains_and_never_mixed_up_on_resume() {
+    let dir = tempdir();
+    let mut settings = tiny(SceneKind::Card, 1);
+    settings.first_seed = 5;
+    settings.sequences = SequenceSource::Markov;
+    generate(&settings, &dir).unwrap();
+    let d = demo(&dir, 5);
+    let chain: Vec<String> = sequence_for_seed(SceneKind::Card, 5, SequenceSource::Markov)
+        .iter()
+        .map(|m| m.name().to_string())
+        .collect();
+    assert_eq!(d.modes, chain);
+    assert_eq!(
+        d.metadata.get("sequences").map(String::as_str),
+        Some("markov")
+    );
+    settings.sequences = SequenceSource::Pattern;
+    let err = generate(&settings, &dir).unwrap_err().to_string();
+    assert!(
+        err.contains("made with --sequences markov") && err.contains("--first-seed"),
+        "{err}"
+    );
+    std::fs::remove_dir_all(&dir).ok();
 }
 
 fn tempdir() -> std::path::PathBuf {

@@ -51,6 +51,80 @@ pub fn sample_prior_sequence(task: SceneKind, rng: &mut KernelRng) -> Vec<Mode> 
     }
 }
 
+/// Where a demo's contact sequence comes from (`dips datagen --sequences`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum SequenceSource {
+    /// The paper's data-generation sequences ([`sample_prior_sequence`]): the screwdriver's
+    /// "turn, then both regrasps in random order, repeated", which never holds two turns in a
+    /// row or a turn after a single regrasp; the card's uniform modes.
+    #[default]
+    Pattern,
+    /// Chains drawn from the paper's Markov prior p(C) (`MarkovPrior::paper`: screwdriver
+    /// p(turn) = 0.8 first, the same mode again 0.1, each other 0.45; card uniform), the
+    /// prior the search plans with, so the demos hold every transition a plan can choose.
+    Markov,
+}
+
+impl SequenceSource {
+    /// Parse `pattern` or `markov`.
+    pub fn from_name(name: &str) -> Option<Self> {
+        match name {
+            "pattern" => Some(Self::Pattern),
+            "markov" => Some(Self::Markov),
+            _ => None,
+        }
+    }
+
+    /// The name [`Self::from_name`] reads.
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Pattern => "pattern",
+            Self::Markov => "markov",
+        }
+    }
+}
+
+/// Draw a sequence of the task's length (7 screwdriver, 5 card modes) from the paper's Markov
+/// prior p(C) (`MarkovPrior::paper` with its p_min = 0.1).
+pub fn sample_markov_sequence(task: SceneKind, rng: &mut KernelRng) -> Vec<Mode> {
+    use dips_kernel::mode::ModeId;
+    let kt = task.task();
+    let prior = dips_kernel::prior::MarkovPrior::paper(kt, 0.1)
+        .expect("the paper's prior is a valid table for every task");
+    let n = prior.modes();
+    let len = match task {
+        SceneKind::Screwdriver => SCREWDRIVER_MODES,
+        SceneKind::Card => CARD_MODES,
+    };
+    let mut prev: Option<ModeId> = None;
+    let mut seq = Vec::with_capacity(len);
+    for _ in 0..len {
+        let w: Vec<f32> = (0..n)
+            .map(|i| prior.probability(prev, ModeId(i as u8)))
+            .collect();
+        let id = ModeId(rng.weighted_index(&w).unwrap_or(0) as u8);
+        let Some(mode) = Mode::from_id(kt, id) else {
+            break;
+        };
+        seq.push(mode);
+        prev = Some(id);
+    }
+    seq
+}
+
+/// The sequence of demo `seed` from `source`: [`prior_sequence_for_seed`] for
+/// [`SequenceSource::Pattern`], else a Markov chain from the same seed's stream.
+pub fn sequence_for_seed(task: SceneKind, seed: u64, source: SequenceSource) -> Vec<Mode> {
+    match source {
+        SequenceSource::Pattern => prior_sequence_for_seed(task, seed),
+        SequenceSource::Markov => {
+            let mut rng = KernelRng::seed_from_u64(seed ^ 0x5eed_c0de);
+            sample_markov_sequence(task, &mut rng)
+        }
+    }
+}
+
 /// The prior sequence of episode `seed`: [`sample_prior_sequence`] with its own stream of the
 /// seed, so that `dips episode --seed S` and demo `S` of `dips datagen` execute the same modes.
 pub fn prior_sequence_for_seed(task: SceneKind, seed: u64) -> Vec<Mode> {
@@ -299,6 +373,51 @@ impl EpisodeResult {
             csvto_step_s,
             mode_runs: runs,
             plans: Vec::new(),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Markov demo sequences follow the paper's prior: the screwdriver starts with a turn 80 %
+    /// of the time and repeats a mode 10 % of the time; the card draws its four modes
+    /// uniformly. Pattern sequences are unchanged by the option.
+    #[test]
+    fn markov_sequences_follow_the_papers_prior() {
+        let n = 4000u64;
+        let (mut first_turn, mut repeats, mut transitions) = (0, 0, 0);
+        for seed in 0..n {
+            let s = sequence_for_seed(SceneKind::Screwdriver, seed, SequenceSource::Markov);
+            assert_eq!(s.len(), SCREWDRIVER_MODES);
+            first_turn += usize::from(s[0] == Mode::Turn);
+            repeats += s.windows(2).filter(|w| w[0] == w[1]).count();
+            transitions += s.len() - 1;
+        }
+        let first = first_turn as f64 / n as f64;
+        let repeat = repeats as f64 / transitions as f64;
+        assert!((first - 0.8).abs() < 0.03, "p(turn first) {first}");
+        assert!((repeat - 0.1).abs() < 0.02, "p(same mode again) {repeat}");
+        let mut counts = [0usize; 4];
+        for seed in 0..n {
+            for m in sequence_for_seed(SceneKind::Card, seed, SequenceSource::Markov) {
+                counts[SceneKind::Card
+                    .modes()
+                    .iter()
+                    .position(|&c| c == m)
+                    .unwrap()] += 1;
+            }
+        }
+        for c in counts {
+            let p = c as f64 / (n as usize * CARD_MODES) as f64;
+            assert!((p - 0.25).abs() < 0.02, "card mode frequency {p}");
+        }
+        for seed in [0, 7, 41] {
+            assert_eq!(
+                sequence_for_seed(SceneKind::Screwdriver, seed, SequenceSource::Pattern),
+                prior_sequence_for_seed(SceneKind::Screwdriver, seed)
+            );
         }
     }
 }
