@@ -51,3 +51,66 @@ impl Clock for MonotonicClock {
         u64::try_from(self.origin.elapsed().as_micros()).unwrap_or(u64::MAX)
     }
 }
+
+/// The firmware's memory on the heap, for running it inside a host process (tests, tools):
+/// the two model buffers and the staging buffer of `model_capacity` bytes each, and, with
+/// [`FirmwareMemory::planning`], a planner and a work area of `work_floats` floats. The
+/// binary uses static buffers instead ([`MODEL_CAPACITY_BYTES`], [`WORK_FLOATS`]).
+pub struct FirmwareMemory {
+    denoiser: Vec<u8>,
+    discriminator: Vec<u8>,
+    staging: Vec<u8>,
+    planning: Option<(Box<dips_kernel::search::PaperPlanner>, Vec<f32>)>,
+}
+
+impl std::fmt::Debug for FirmwareMemory {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("FirmwareMemory")
+            .field("model_capacity", &self.denoiser.len())
+            .field(
+                "work_floats",
+                &self.planning.as_ref().map(|(_, work)| work.len()),
+            )
+            .finish()
+    }
+}
+
+impl FirmwareMemory {
+    /// Model buffers only: a firmware that takes uploads and answers everything but plans.
+    pub fn models(model_capacity: usize) -> Self {
+        Self {
+            denoiser: vec![0; model_capacity],
+            discriminator: vec![0; model_capacity],
+            staging: vec![0; model_capacity],
+            planning: None,
+        }
+    }
+
+    /// Model buffers and planning memory.
+    pub fn planning(model_capacity: usize, work_floats: usize) -> Self {
+        Self {
+            planning: Some((
+                Box::new(dips_kernel::search::PaperPlanner::new()),
+                vec![0.0; work_floats],
+            )),
+            ..Self::models(model_capacity)
+        }
+    }
+
+    /// A fresh firmware over this memory.
+    pub fn firmware(&mut self) -> Firmware<'_> {
+        match &mut self.planning {
+            Some((planner, work)) => Firmware::with_planning(
+                &mut self.denoiser,
+                &mut self.discriminator,
+                &mut self.staging,
+                planning::PlanMemory { planner, work },
+            ),
+            None => Firmware::new(
+                &mut self.denoiser,
+                &mut self.discriminator,
+                &mut self.staging,
+            ),
+        }
+    }
+}

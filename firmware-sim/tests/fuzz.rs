@@ -11,7 +11,7 @@
 mod common;
 
 use common::frame_bytes;
-use dips_firmware_sim::{Firmware, serve};
+use dips_firmware_sim::{FirmwareMemory, serve};
 use dips_kernel::rng::KernelRng;
 use dips_wire::*;
 
@@ -191,8 +191,8 @@ fn mutated_frames_never_panic_or_stick_the_firmware() {
         .unwrap_or(1);
     let corpus = corpus();
     let mut rng = KernelRng::seed_from_u64(seed);
-    let (mut den, mut disc, mut stage) = (vec![0u8; 4096], vec![0u8; 4096], vec![0u8; 4096]);
-    let mut firmware = Firmware::new(&mut den, &mut disc, &mut stage);
+    let mut memory = FirmwareMemory::models(4096);
+    let mut firmware = memory.firmware();
     let t0 = std::time::Instant::now();
     let mut sent = 0usize;
     let mut replies_seen = 0usize;

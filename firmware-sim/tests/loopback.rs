@@ -5,7 +5,7 @@ mod common;
 use std::io::Read;
 
 use common::frame_bytes;
-use dips_firmware_sim::{Firmware, ServeStats, serve};
+use dips_firmware_sim::{FirmwareMemory, ServeStats, serve};
 use dips_wire::*;
 
 /// A reader that hands out its bytes in small pieces of varying size.
@@ -47,10 +47,8 @@ fn replies(bytes: &[u8]) -> Vec<Frame<FromKernel>> {
 }
 
 fn run(input: &[u8], model_capacity: usize, trickle: bool) -> (Vec<Frame<FromKernel>>, ServeStats) {
-    let mut den = vec![0u8; model_capacity];
-    let mut dis = vec![0u8; model_capacity];
-    let mut stage = vec![0u8; model_capacity];
-    let mut fw = Firmware::new(&mut den, &mut dis, &mut stage);
+    let mut memory = FirmwareMemory::models(model_capacity);
+    let mut fw = memory.firmware();
     let mut output = Vec::new();
     let stats = if trickle {
         serve(

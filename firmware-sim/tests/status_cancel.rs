@@ -7,8 +7,7 @@ use std::io::Read;
 use std::time::Duration;
 
 use common::frame_bytes;
-use dips_firmware_sim::planning::PlanMemory;
-use dips_firmware_sim::{Firmware, serve};
+use dips_firmware_sim::{FirmwareMemory, serve};
 use dips_kernel::search::PaperPlanner;
 use dips_onnx::{Expectation, Role, lower_file};
 use dips_wire::*;
@@ -115,19 +114,8 @@ fn status_names_the_models_memory_and_frames_and_cancel_stops_a_running_plan() {
         next: 0,
         offset: 0,
     };
-    let (mut den_buf, mut disc_buf) = (vec![0u8; 4 << 20], vec![0u8; 4 << 20]);
-    let mut planner = Box::new(PaperPlanner::new());
-    let mut work = vec![0.0f32; 4_000_000];
-    let mut stage = vec![0u8; den_buf.len()];
-    let mut firmware = Firmware::with_planning(
-        &mut den_buf,
-        &mut disc_buf,
-        &mut stage,
-        PlanMemory {
-            planner: &mut planner,
-            work: &mut work,
-        },
-    );
+    let mut memory = FirmwareMemory::planning(4 << 20, 4_000_000);
+    let mut firmware = memory.firmware();
     let mut out = Vec::new();
     let stats = serve(&mut firmware, input, &mut out).unwrap();
     let got = replies(&out);
@@ -194,9 +182,8 @@ fn status_names_the_models_memory_and_frames_and_cancel_stops_a_running_plan() {
 
 #[test]
 fn a_cancel_with_no_plan_running_is_applied_and_changes_nothing() {
-    let (mut den_buf, mut disc_buf) = (vec![0u8; 1024], vec![0u8; 1024]);
-    let mut stage = vec![0u8; 1024];
-    let mut firmware = Firmware::new(&mut den_buf, &mut disc_buf, &mut stage);
+    let mut memory = FirmwareMemory::models(1024);
+    let mut firmware = memory.firmware();
     let input = frames(
         1,
         [

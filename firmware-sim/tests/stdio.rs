@@ -186,9 +186,7 @@ fn binary_serves_tcp_connections_one_after_another() {
 /// the library's firmware does in-process.
 #[test]
 fn binary_plans_with_models_uploaded_over_stdio() {
-    use dips_firmware_sim::planning::PlanMemory;
-    use dips_firmware_sim::{Firmware, serve};
-    use dips_kernel::search::PaperPlanner;
+    use dips_firmware_sim::{FirmwareMemory, serve};
     use dips_onnx::{Expectation, Role, lower_file};
 
     let fixture = |file: &str, role| {
@@ -253,19 +251,8 @@ fn binary_plans_with_models_uploaded_over_stdio() {
     );
     let from_binary = decode(&out.stdout);
 
-    let (mut den_buf, mut disc_buf) = (vec![0u8; 4 << 20], vec![0u8; 4 << 20]);
-    let mut planner = Box::new(PaperPlanner::new());
-    let mut work = vec![0.0f32; 4_000_000];
-    let mut stage = vec![0u8; den_buf.len()];
-    let mut firmware = Firmware::with_planning(
-        &mut den_buf,
-        &mut disc_buf,
-        &mut stage,
-        PlanMemory {
-            planner: &mut planner,
-            work: &mut work,
-        },
-    );
+    let mut memory = FirmwareMemory::planning(4 << 20, 4_000_000);
+    let mut firmware = memory.firmware();
     let mut in_process = Vec::new();
     serve(&mut firmware, &input[..], &mut in_process).unwrap();
     let in_process = decode(&in_process);

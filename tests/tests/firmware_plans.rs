@@ -10,8 +10,7 @@
 use std::io::Cursor;
 use std::path::PathBuf;
 
-use dips_firmware_sim::planning::PlanMemory;
-use dips_firmware_sim::{Firmware, serve};
+use dips_firmware_sim::{FirmwareMemory, serve};
 use dips_kernel::adapters::{
     DiffusionSegmentSampler, DiscriminatorScorer, SamplerAdapterLayout, ScorerAdapterLayout,
 };
@@ -122,20 +121,8 @@ fn configured_session(
     config: &[ToKernel],
     requests: &[PlanRequest],
 ) -> Vec<FromKernel> {
-    let mut den_buf = vec![0u8; MODEL_CAPACITY];
-    let mut disc_buf = vec![0u8; MODEL_CAPACITY];
-    let mut planner = Box::new(PaperPlanner::new());
-    let mut work = vec![0.0f32; work_floats];
-    let mut stage = vec![0u8; den_buf.len()];
-    let mut firmware = Firmware::with_planning(
-        &mut den_buf,
-        &mut disc_buf,
-        &mut stage,
-        PlanMemory {
-            planner: &mut planner,
-            work: &mut work,
-        },
-    );
+    let mut memory = FirmwareMemory::planning(MODEL_CAPACITY, work_floats);
+    let mut firmware = memory.firmware();
     let mut messages = vec![ToKernel::Hello(Hello {
         protocol_version: PROTOCOL_VERSION,
         schema_key: SCHEMA_KEY,
@@ -162,20 +149,8 @@ fn raw_session(
     work_floats: usize,
     then: &[ToKernel],
 ) -> Vec<FromKernel> {
-    let mut den_buf = vec![0u8; MODEL_CAPACITY];
-    let mut disc_buf = vec![0u8; MODEL_CAPACITY];
-    let mut stage = vec![0u8; MODEL_CAPACITY];
-    let mut planner = Box::new(PaperPlanner::new());
-    let mut work = vec![0.0f32; work_floats];
-    let mut firmware = Firmware::with_planning(
-        &mut den_buf,
-        &mut disc_buf,
-        &mut stage,
-        PlanMemory {
-            planner: &mut planner,
-            work: &mut work,
-        },
-    );
+    let mut memory = FirmwareMemory::planning(MODEL_CAPACITY, work_floats);
+    let mut firmware = memory.firmware();
     let mut messages = vec![ToKernel::Hello(Hello::current())];
     messages.extend(upload_messages(ModelRole::Denoiser, denoiser).unwrap());
     messages.extend(upload_messages(ModelRole::Discriminator, discriminator).unwrap());

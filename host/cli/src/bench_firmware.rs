@@ -17,8 +17,7 @@ use std::time::Instant;
 
 use anyhow::{Context, anyhow, bail};
 use clap::Args;
-use dips_firmware_sim::Firmware;
-use dips_firmware_sim::planning::PlanMemory;
+use dips_firmware_sim::{Firmware, FirmwareMemory};
 use dips_host::planning::{model_file, models_dir, parse_sampler};
 use dips_host::problems::contract::contract_state;
 use dips_host::scenes::SceneKind;
@@ -109,18 +108,8 @@ fn with_firmware<T>(
     run: impl FnOnce(&mut Firmware<'_>) -> anyhow::Result<T>,
 ) -> anyhow::Result<T> {
     let cap = s.denoiser.len().max(s.discriminator.len());
-    let (mut den, mut disc, mut stage) = (vec![0u8; cap], vec![0u8; cap], vec![0u8; cap]);
-    let mut planner = Box::new(PaperPlanner::new());
-    let mut work = vec![0.0f32; work_floats];
-    let mut fw = Firmware::with_planning(
-        &mut den,
-        &mut disc,
-        &mut stage,
-        PlanMemory {
-            planner: &mut planner,
-            work: &mut work,
-        },
-    );
+    let mut memory = FirmwareMemory::planning(cap, work_floats);
+    let mut fw = memory.firmware();
     let mut clock = NoClock;
     let mut messages = vec![ToKernel::Hello(Hello::current()), s.sampler.clone()];
     messages.extend(
@@ -136,6 +125,22 @@ fn with_firmware<T>(
         }
     }
     run(&mut fw)
+}
+
+/// Encode `body` as a frame, then deframe and decode it as the other side does (the CPU work
+/// of one message on the wire).
+fn codec_round<B: dips_wire::Message + Clone>(body: &B) {
+    let mut buf = [0u8; MAX_ENCODED_FRAME_LEN];
+    let frame = Frame {
+        request_id: 2,
+        body: body.clone(),
+    };
+    if let Ok(bytes) = encode_frame(&frame, &mut buf) {
+        let mut acc = dips_wire::FrameAccumulator::<MAX_ENCODED_FRAME_LEN>::new();
+        if let dips_wire::Feed::Frame { payload, .. } = acc.feed(bytes) {
+            let _ = decode_frame::<B>(payload);
+        }
+    }
 }
 
 /// Frame `body` and return its encoded length.
@@ -261,34 +266,8 @@ pub fn run(args: &FirmwareBenchArgs) -> anyhow::Result<()> {
     let status_bytes =
         encoded_len(3, ToKernel::Status)? + encoded_len(3, FromKernel::Status(status))?;
     let codec_us = median_us(20_000, || {
-        let mut buf = [0u8; MAX_ENCODED_FRAME_LEN];
-        for body in [&req] {
-            if let Ok(bytes) = encode_frame(
-                &Frame {
-                    request_id: 2,
-                    body: body.clone(),
-                },
-                &mut buf,
-            ) {
-                let mut acc = dips_wire::FrameAccumulator::<MAX_ENCODED_FRAME_LEN>::new();
-                if let dips_wire::Feed::Frame { payload, .. } = acc.feed(bytes) {
-                    let _ = decode_frame::<ToKernel>(payload);
-                }
-            }
-        }
-        let mut buf2 = [0u8; MAX_ENCODED_FRAME_LEN];
-        if let Ok(bytes) = encode_frame(
-            &Frame {
-                request_id: 2,
-                body: reply.clone(),
-            },
-            &mut buf2,
-        ) {
-            let mut acc = dips_wire::FrameAccumulator::<MAX_ENCODED_FRAME_LEN>::new();
-            if let dips_wire::Feed::Frame { payload, .. } = acc.feed(bytes) {
-                let _ = decode_frame::<FromKernel>(payload);
-            }
-        }
+        codec_round(&req);
+        codec_round(&reply);
     });
     let upload_bytes: usize = [
         (ModelRole::Denoiser, &s.denoiser),

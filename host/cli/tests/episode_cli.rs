@@ -404,23 +404,30 @@ fn without_times(v: &mut serde_json::Value) {
     }
 }
 
+/// A fast card `--method dips` episode (seed 8, `ddim:4`, two expansions per plan, no time
+/// budget, so the plans do not depend on the machine's speed), the remote-kernel tests' run.
+fn fast_card_dips_episode() -> Command {
+    let mut c = dips();
+    c.args([
+        "episode", "--task", "card", "--method", "dips", "--seed", "8",
+    ])
+    .args([
+        "--sampler",
+        "ddim:4",
+        "--node-budget",
+        "2",
+        "--time-budget-s",
+        "0",
+    ]);
+    c
+}
+
 #[test]
 fn a_dips_episode_planned_by_a_spawned_firmware_is_the_in_process_episode_bit_for_bit() {
     let firmware = firmware_sim();
     let run = |name: &str, kernel: &[&str]| {
         let dir = temp_dir(name);
-        let out = dips()
-            .args([
-                "episode", "--task", "card", "--method", "dips", "--seed", "8",
-            ])
-            .args([
-                "--sampler",
-                "ddim:4",
-                "--node-budget",
-                "2",
-                "--time-budget-s",
-                "0",
-            ])
+        let out = fast_card_dips_episode()
             .args(["--max-modes", "2"])
             .args(kernel)
             .arg("--out")
@@ -457,18 +464,7 @@ fn a_firmware_that_dies_mid_episode_is_an_error_naming_the_last_request() {
     std::os::unix::fs::PermissionsExt::set_mode(&mut perm, 0o755);
     std::fs::set_permissions(&script, perm).unwrap();
     let t0 = std::time::Instant::now();
-    let out = dips()
-        .args([
-            "episode", "--task", "card", "--method", "dips", "--seed", "8",
-        ])
-        .args([
-            "--sampler",
-            "ddim:4",
-            "--node-budget",
-            "2",
-            "--time-budget-s",
-            "0",
-        ])
+    let out = fast_card_dips_episode()
         .arg("--kernel")
         .arg(format!("spawn:{}", script.display()))
         .arg("--out")

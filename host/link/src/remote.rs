@@ -101,14 +101,15 @@ impl RemotePlanner {
             held.is_some_and(|m| m.len_bytes as usize == blob.len() && m.crc32 == crc32(blob))
         };
         for role in [ModelRole::Denoiser, ModelRole::Discriminator] {
-            let (held, blob) = match role {
-                ModelRole::Denoiser => (status.denoiser, self.denoiser.clone()),
-                ModelRole::Discriminator => (status.discriminator, self.discriminator.clone()),
+            let (held, blob): (_, &[u8]) = match role {
+                ModelRole::Denoiser => (status.denoiser, &self.denoiser),
+                ModelRole::Discriminator => (status.discriminator, &self.discriminator),
             };
-            if same(held, &blob) {
+            if same(held, blob) {
                 continue;
             }
-            let messages = upload_messages(role, &blob).ok_or_else(|| {
+            let crc = crc32(blob);
+            let messages = upload_messages(role, blob).ok_or_else(|| {
                 anyhow!(
                     "the {role:?} model ({} bytes) is too large for the wire",
                     blob.len()
@@ -119,7 +120,7 @@ impl RemotePlanner {
                 let reply = self.link.request(&m, timeout)?;
                 match (&m, &reply) {
                     (ToKernel::ModelEnd, FromKernel::ModelLoaded(l)) => {
-                        if l.crc32 != crc32(&blob) {
+                        if l.crc32 != crc {
                             bail!("the kernel loaded a {role:?} with another CRC than sent");
                         }
                     }

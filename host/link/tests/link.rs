@@ -4,15 +4,14 @@
 use std::path::{Path, PathBuf};
 use std::time::Duration;
 
-use dips_firmware_sim::planning::PlanMemory;
-use dips_firmware_sim::{Firmware, serve};
+use dips_firmware_sim::{FirmwareMemory, serve};
 use dips_host::planning::{Models, PaperSession, PlanOutcome, PlanService, parse_sampler};
 use dips_host::problems::contract::contract_state;
 use dips_host::scenes::SceneKind;
 use dips_host::world::World;
 use dips_kernel::budget::NoClock;
 use dips_kernel::mode::Task;
-use dips_kernel::search::{PaperPlanner, SearchConfig};
+use dips_kernel::search::SearchConfig;
 use dips_kernel::session::PlanSpec;
 use dips_link::{Link, LinkError, RemotePlanner, Timeouts};
 use dips_onnx::EngineKind;
@@ -107,19 +106,8 @@ fn a_remote_plan_is_the_in_process_plan_and_models_are_uploaded_once() {
         .map(|s| session.plan_call(s, &mut NoClock).unwrap())
         .collect();
 
-    let (mut den, mut disc) = (vec![0u8; 8 << 20], vec![0u8; 8 << 20]);
-    let mut planner = Box::new(PaperPlanner::new());
-    let mut work = vec![0.0f32; 8_000_000];
-    let mut stage = vec![0u8; den.len()];
-    let mut firmware = Firmware::with_planning(
-        &mut den,
-        &mut disc,
-        &mut stage,
-        PlanMemory {
-            planner: &mut planner,
-            work: &mut work,
-        },
-    );
+    let mut memory = FirmwareMemory::planning(8 << 20, 8_000_000);
+    let mut firmware = memory.firmware();
     // Two connections one after the other, as `--listen` serves them.
     for (round, spec) in specs.iter().enumerate() {
         let (to_kernel_r, to_kernel_w) = std::io::pipe().unwrap();
