@@ -6,11 +6,13 @@
 #   3. dips train --policy   the Diffusion Policy baseline, policy/denoiser.onnx (~18 min
 #                     per task, side by side)
 #   4. dips model quality / card   figures on the held-out demos, MODEL_CARD.md
-# Every step resumes after a kill: rerun the script. About 1 h 40 min on 2 cores
+# Every step resumes after a kill: rerun the script. About 2 h on 2 cores
 # (docs/training.md, "Shipped models"). Settings: onnx/models/<task>/settings.json.
 #
-# Environment: DEMOS_SCREWDRIVER (default 40), DEMOS_CARD (default 48), WORK (default
-# target/models-work: datasets, checkpoints and logs; not committed).
+# Environment: DEMOS_SCREWDRIVER (default 40), MARKOV_SCREWDRIVER (default 40: screwdriver
+# demos whose sequences are drawn from the paper's Markov prior, seeds 100 on; docs/datagen.md),
+# DEMOS_CARD (default 48), WORK (default target/models-work: datasets, checkpoints and logs;
+# not committed).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 WORK=${WORK:-target/models-work}
@@ -24,6 +26,12 @@ for task in screwdriver card; do
   echo "== datagen $task (${DEMOS[$task]} demos)"
   "$DIPS" datagen --task "$task" --demos "${DEMOS[$task]}" --out "$WORK/data/$task"
 done
+MARKOV=${MARKOV_SCREWDRIVER:-40}
+if [ "$MARKOV" -gt 0 ]; then
+  echo "== datagen screwdriver ($MARKOV demos from the Markov prior)"
+  "$DIPS" datagen --task screwdriver --demos "$MARKOV" --first-seed 100 --sequences markov \
+    --out "$WORK/data/screwdriver"
+fi
 
 pids=()
 for task in screwdriver card; do
