@@ -16,7 +16,9 @@
 use std::path::PathBuf;
 
 use anyhow::{Context, bail};
+use dips_cli::output::line;
 use dips_host::planning::{Models, models_dir, parse_sampler, sample_trajectories};
+use dips_host::problems::contract::contract_state;
 use dips_kernel::diffusion::normalize::normalize_in_place;
 use dips_kernel::engine::DiscriminatorEngine;
 use dips_kernel::mode::{Task, TaskMode};
@@ -26,7 +28,19 @@ use dips_kernel::session::invariant_angle;
 /// Segments sampled per executed mode.
 const SAMPLES: usize = 64;
 
-fn main() -> anyhow::Result<()> {
+fn main() -> std::process::ExitCode {
+    match probe() {
+        Ok(()) => std::process::ExitCode::SUCCESS,
+        // A reader that stops early (`| head`) ends the output, not in an error.
+        Err(e) if dips_cli::output::is_broken_pipe(&e) => std::process::ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("mode_probe: {e:#}");
+            std::process::ExitCode::FAILURE
+        }
+    }
+}
+
+fn probe() -> anyhow::Result<()> {
     let mut args = std::env::args().skip(1);
     let mut models_arg = None;
     let mut files = Vec::new();
@@ -56,19 +70,15 @@ fn main() -> anyhow::Result<()> {
         let h = dims.horizon - 1;
         let layout = task.layout();
         let progress = if task == Task::Screwdriver { 2 } else { 1 };
-        println!("{}:", file.display());
+        line(&format!("{}:", file.display()))?;
         for run in r["mode_runs"].as_array().context("no mode_runs")? {
             let name = run["mode"].as_str().context("mode")?;
             let mode = TaskMode::from_name(task, name).map_err(|e| anyhow::anyhow!("{e:?}"))?;
-            let world: Vec<f32> = serde_json::from_value::<Vec<f64>>(run["start_state"].clone())?
-                .iter()
-                .map(|&v| v as f32)
-                .collect();
+            let world: Vec<f64> = serde_json::from_value(run["start_state"].clone())?;
             let end: Vec<f64> = serde_json::from_value(run["end_state"].clone())?;
             let nq = world.len() - 3;
             // The world's [q, o] with o's angle as (cos, sin), the models' raw state.
-            let mut state = world[..nq + 2].to_vec();
-            state.extend([world[nq + 2].cos(), world[nq + 2].sin()]);
+            let state: Vec<f32> = contract_state(&world).iter().map(|&v| v as f32).collect();
             if state.len() != sd {
                 bail!(
                     "{name}: state of {} values, the models take {sd}",
@@ -119,8 +129,8 @@ fn main() -> anyhow::Result<()> {
                     .map(|p| p * p)
                     .sum::<f32>()
                     .max(f32::MIN_POSITIVE);
-            let executed = end[nq + progress] - f64::from(world[nq + progress]);
-            println!(
+            let executed = end[nq + progress] - world[nq + progress];
+            line(&format!(
                 "  {name:22} start {:+.3}: executed {:+.3}, diffused {:+.3}; first-step joint jump {:.3}; Ψ {:.3} (ESS {:.1}/{SAMPLES})",
                 world[nq + progress],
                 executed,
@@ -128,7 +138,7 @@ fn main() -> anyhow::Result<()> {
                 jump / SAMPLES as f32,
                 sum / SAMPLES as f32,
                 ess
-            );
+            ))?;
         }
     }
     Ok(())

@@ -153,7 +153,7 @@ pub fn generate(settings: &DatagenSettings, dir: &Path) -> Result<DatagenReport,
                 let made = demo
                     .metadata
                     .get("sequences")
-                    .map_or("pattern", String::as_str);
+                    .map_or(SequenceSource::Pattern.name(), String::as_str);
                 if made != settings.sequences.name() {
                     return Err(DatagenError::Settings(format!(
                         "{} was made with --sequences {made}, this run asks for {}; give \

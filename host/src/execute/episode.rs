@@ -52,8 +52,7 @@ pub fn sample_prior_sequence(task: SceneKind, rng: &mut KernelRng) -> Vec<Mode> 
 }
 
 /// Where a demo's contact sequence comes from (`dips datagen --sequences`).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize)]
-#[serde(rename_all = "kebab-case")]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum SequenceSource {
     /// The paper's data-generation sequences ([`sample_prior_sequence`]): the screwdriver's
     /// "turn, then both regrasps in random order, repeated", which never holds two turns in a
@@ -86,11 +85,12 @@ impl SequenceSource {
 }
 
 /// Draw a sequence of the task's length (7 screwdriver, 5 card modes) from the paper's Markov
-/// prior p(C) (`MarkovPrior::paper` with its p_min = 0.1).
+/// prior p(C) (`MarkovPrior::paper` with the task's search `p_min`, as the planner uses it).
 pub fn sample_markov_sequence(task: SceneKind, rng: &mut KernelRng) -> Vec<Mode> {
     use dips_kernel::mode::ModeId;
     let kt = task.task();
-    let prior = dips_kernel::prior::MarkovPrior::paper(kt, 0.1)
+    let p_min = dips_kernel::search::SearchConfig::for_task(kt).p_min;
+    let prior = dips_kernel::prior::MarkovPrior::paper(kt, p_min)
         .expect("the paper's prior is a valid table for every task");
     let n = prior.modes();
     let len = match task {
@@ -113,23 +113,20 @@ pub fn sample_markov_sequence(task: SceneKind, rng: &mut KernelRng) -> Vec<Mode>
     seq
 }
 
-/// The sequence of demo `seed` from `source`: [`prior_sequence_for_seed`] for
-/// [`SequenceSource::Pattern`], else a Markov chain from the same seed's stream.
+/// The sequence of demo `seed` from `source`, drawn from the seed's own stream
+/// ([`prior_sequence_for_seed`] is the [`SequenceSource::Pattern`] case).
 pub fn sequence_for_seed(task: SceneKind, seed: u64, source: SequenceSource) -> Vec<Mode> {
+    let mut rng = KernelRng::seed_from_u64(seed ^ 0x5eed_c0de);
     match source {
-        SequenceSource::Pattern => prior_sequence_for_seed(task, seed),
-        SequenceSource::Markov => {
-            let mut rng = KernelRng::seed_from_u64(seed ^ 0x5eed_c0de);
-            sample_markov_sequence(task, &mut rng)
-        }
+        SequenceSource::Pattern => sample_prior_sequence(task, &mut rng),
+        SequenceSource::Markov => sample_markov_sequence(task, &mut rng),
     }
 }
 
 /// The prior sequence of episode `seed`: [`sample_prior_sequence`] with its own stream of the
 /// seed, so that `dips episode --seed S` and demo `S` of `dips datagen` execute the same modes.
 pub fn prior_sequence_for_seed(task: SceneKind, seed: u64) -> Vec<Mode> {
-    let mut rng = KernelRng::seed_from_u64(seed ^ 0x5eed_c0de);
-    sample_prior_sequence(task, &mut rng)
+    sequence_for_seed(task, seed, SequenceSource::Pattern)
 }
 
 /// Screwdriver success: still valid and turned at least this far (rad, clockwise negative):
