@@ -4,8 +4,9 @@
 //! provided by the caller, and running out of room is reported as a status, never a panic.
 //! See `ARCHITECTURE.md` at the workspace root for the crate map and data flow.
 //!
-//! No `unsafe` but one kind of call: the AVX2 copies of the hot op kernels are entered only
-//! after the CPU reports AVX2 (`nn::ops::cpu::wide!`, the single `allow(unsafe_code)`).
+//! No `unsafe` but two kinds of call, both in `nn::ops::cpu`: the AVX2 copies of the hot op
+//! kernels are entered only after the CPU reports AVX2 (`wide!`), and `sqrt` calls the SSE
+//! square root, part of the x86_64 baseline.
 #![no_std]
 #![deny(unsafe_code)]
 #![cfg_attr(

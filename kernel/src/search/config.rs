@@ -17,6 +17,25 @@ pub enum CostToCome {
     LastSegment,
 }
 
+impl CostToCome {
+    /// Both forms, in the order of their names.
+    pub const ALL: [CostToCome; 2] = [CostToCome::Cumulative, CostToCome::LastSegment];
+
+    /// The form's name in settings files and on the command line: `cumulative` or
+    /// `last-segment`.
+    pub const fn name(self) -> &'static str {
+        match self {
+            CostToCome::Cumulative => "cumulative",
+            CostToCome::LastSegment => "last-segment",
+        }
+    }
+
+    /// The form named `name` ([`CostToCome::name`]), if any.
+    pub fn from_name(name: &str) -> Option<Self> {
+        Self::ALL.into_iter().find(|c| c.name() == name)
+    }
+}
+
 /// Which node representation the search uses.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum SearchVariant {

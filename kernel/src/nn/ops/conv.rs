@@ -1,15 +1,18 @@
 //! 1-D convolution and transposed convolution, channels-first `[c, l]` per sample.
 //!
-//! A convolution is a GEMM over `p = (input channel, tap)`: for [`T_BLOCK`] output positions at
-//! a time, the `cin·k × T_BLOCK` input values they read are gathered into a small tile (never a
-//! full im2col matrix), then every block of [`CO_BLOCK`] output channels accumulates
-//! `T_BLOCK × CO_BLOCK` sums in registers, walking the tile and the kernel (packed
-//! `[cout/CO_BLOCK][cin·k][CO_BLOCK]`) contiguously. The input is first copied into a
-//! zero-padded row per channel so the gather has no edge tests. Block sizes were measured
-//! (`conv1d_throughput`, SSE2 baseline): 3×8 runs at 9–15 GMAC/s on the fixtures' shapes,
-//! 4×8 at 1.5–2.5 (the compiler vectorizes it across positions instead of channels) and
-//! 3×16 at 5–7 (register spills). The AVX2 copy ([`super::cpu`]) runs 3×16 (two channel
-//! blocks, 16 registers of 8 lanes): 10–19 GMAC/s where the baseline runs 8–12.
+//! A convolution is a GEMM over `p = (input channel, tap)`. The input is first copied into a
+//! zero-padded row per channel, so nothing below tests an edge. For a block of output
+//! positions, every block of [`CO_BLOCK`] output channels accumulates `positions × CO_BLOCK`
+//! sums in registers, walking the kernel (packed `[cout/CO_BLOCK][cin·k][CO_BLOCK]`)
+//! contiguously. With stride 1 and dilation 1 (all but a U-Net's down-sampling convolutions)
+//! the inputs of `p` for the block are a window of the padded row and are read in place;
+//! otherwise they are first gathered into a small tile (`cin·k × T_BLOCK`, never a full im2col
+//! matrix). Block sizes, measured (`conv1d_throughput`, on the shipped denoisers' shapes):
+//! the SSE2 baseline runs 3 positions × 8 channels (4 × 8 vectorizes across positions, 3 × 16
+//! spills); the AVX2 copy ([`super::cpu`]) runs 4 × 16 where 4 divides the output length
+//! (the screwdriver's 16/8/4), 3 × 16 otherwise, at 25–32 GMAC/s on one core of this
+//! project's EPYC VM (the gathered tile and 3 × 16 everywhere ran 12–20; 6 × 16 spills).
+//! The blocking never changes a sum's order, so it never changes a result.
 
 use super::{OpSizeError, ensure, mul};
 use crate::nn::format::ConvGeom;
@@ -83,15 +86,63 @@ fn check_common(
     ensure(b.len() == coutp)
 }
 
+/// Where a micro-kernel reads its inputs from.
+#[derive(Clone, Copy)]
+enum Inputs<'a> {
+    /// A gathered tile, `[cin·k][TB]`: `tile[p·TB + j]` is the input that `p` multiplies for
+    /// position `t0 + j`.
+    Tile(&'a [f32]),
+    /// The zero-padded rows themselves (stride 1, dilation 1): for `p = (ci, tap)` the `TB`
+    /// inputs are `xp[ci][t0 + tap ..][..TB]`, a window of the row, so nothing is gathered.
+    Rows {
+        /// The padded rows, `[cin][lp]`.
+        xp: &'a [f32],
+        /// Length of one padded row.
+        lp: usize,
+        /// Taps per input channel.
+        k: usize,
+    },
+}
+
+/// `acc[i][j][c] += a[j] · w_i[c]` for the `CB` channel blocks (`w1` unread when `CB = 1`).
+#[inline(always)]
+fn mac<const TB: usize, const CB: usize>(
+    acc: &mut [[[f32; CO_BLOCK]; TB]; CB],
+    a: &[f32],
+    wv0: &[f32],
+    wv1: &[f32],
+) {
+    let (Ok(a), Ok(wv0), Ok(wv1)) = (
+        <&[f32; TB]>::try_from(a),
+        <&[f32; CO_BLOCK]>::try_from(wv0),
+        <&[f32; CO_BLOCK]>::try_from(wv1),
+    ) else {
+        return;
+    };
+    for j in 0..TB {
+        for c in 0..CO_BLOCK {
+            acc[0][j][c] += a[j] * wv0[c];
+        }
+    }
+    if CB == 2 {
+        for j in 0..TB {
+            for c in 0..CO_BLOCK {
+                acc[CB - 1][j][c] += a[j] * wv1[c];
+            }
+        }
+    }
+}
+
 /// `TB` output positions × `CB`·[`CO_BLOCK`] output channels starting at channel block `cb0`:
-/// a GEMM micro-kernel over `p = (ci, tap)`. `tile` holds the `TB` input values each `p`
-/// multiplies, `[cin·k][TB]`; `w` the packed kernel, `[cout_padded / CO_BLOCK][cin·k][CO_BLOCK]`.
-/// Every sum starts at the bias and adds `p` in order, whatever `TB` and `CB` are, so the
-/// blocking never changes a result.
+/// a GEMM micro-kernel over `p = (ci, tap)`, reading the `TB` inputs of each `p` from
+/// `inputs`; `w` is the packed kernel, `[cout_padded / CO_BLOCK][cin·k][CO_BLOCK]`, of `p`
+/// rows. Every sum starts at the bias and adds `p` in order, whatever `TB`, `CB` and the input
+/// source are, so neither the blocking nor the source ever changes a result.
 #[inline(always)]
 #[allow(clippy::too_many_arguments)]
 fn tile_block<const TB: usize, const CB: usize>(
-    tile: &[f32],
+    inputs: Inputs<'_>,
+    p: usize,
     w: &[f32],
     b: &[f32],
     y: &mut [f32],
@@ -100,7 +151,6 @@ fn tile_block<const TB: usize, const CB: usize>(
     t0: usize,
     cb0: usize,
 ) {
-    let p = tile.len() / TB;
     let mut acc = [[[0.0f32; CO_BLOCK]; TB]; CB];
     for (i, blk) in acc.iter_mut().enumerate() {
         let co = (cb0 + i) * CO_BLOCK;
@@ -115,27 +165,32 @@ fn tile_block<const TB: usize, const CB: usize>(
     } else {
         w0
     };
-    for ((a, wv0), wv1) in tile
-        .chunks_exact(TB)
-        .zip(w0.chunks_exact(CO_BLOCK))
-        .zip(w1.chunks_exact(CO_BLOCK))
-    {
-        let (Ok(a), Ok(wv0), Ok(wv1)) = (
-            <&[f32; TB]>::try_from(a),
-            <&[f32; CO_BLOCK]>::try_from(wv0),
-            <&[f32; CO_BLOCK]>::try_from(wv1),
-        ) else {
-            continue;
-        };
-        for j in 0..TB {
-            for c in 0..CO_BLOCK {
-                acc[0][j][c] += a[j] * wv0[c];
+    match inputs {
+        Inputs::Tile(tile) => {
+            for ((a, wv0), wv1) in tile
+                .chunks_exact(TB)
+                .zip(w0.chunks_exact(CO_BLOCK))
+                .zip(w1.chunks_exact(CO_BLOCK))
+            {
+                mac::<TB, CB>(&mut acc, a, wv0, wv1);
             }
         }
-        if CB == 2 {
-            for j in 0..TB {
-                for c in 0..CO_BLOCK {
-                    acc[CB - 1][j][c] += a[j] * wv1[c];
+        Inputs::Rows { xp, lp, k } => {
+            let per_channel = k * CO_BLOCK;
+            for ((row, w0c), w1c) in xp
+                .chunks_exact(lp)
+                .zip(w0.chunks_exact(per_channel))
+                .zip(w1.chunks_exact(per_channel))
+            {
+                let Some(window) = row.get(t0..t0 + k + TB - 1) else {
+                    continue;
+                };
+                for ((a, wv0), wv1) in window
+                    .windows(TB)
+                    .zip(w0c.chunks_exact(CO_BLOCK))
+                    .zip(w1c.chunks_exact(CO_BLOCK))
+                {
+                    mac::<TB, CB>(&mut acc, a, wv0, wv1);
                 }
             }
         }
@@ -155,7 +210,8 @@ fn tile_block<const TB: usize, const CB: usize>(
 #[inline(always)]
 #[allow(clippy::too_many_arguments)]
 fn tile_blocks<const TB: usize, const CB: usize>(
-    tile: &[f32],
+    inputs: Inputs<'_>,
+    p: usize,
     w: &[f32],
     b: &[f32],
     y: &mut [f32],
@@ -166,11 +222,11 @@ fn tile_blocks<const TB: usize, const CB: usize>(
     let blocks = cout.div_ceil(CO_BLOCK);
     let mut cb = 0;
     while cb + CB <= blocks {
-        tile_block::<TB, CB>(tile, w, b, y, cout, lout, t0, cb);
+        tile_block::<TB, CB>(inputs, p, w, b, y, cout, lout, t0, cb);
         cb += CB;
     }
     while cb < blocks {
-        tile_block::<TB, 1>(tile, w, b, y, cout, lout, t0, cb);
+        tile_block::<TB, 1>(inputs, p, w, b, y, cout, lout, t0, cb);
         cb += 1;
     }
 }
@@ -212,23 +268,40 @@ fn conv1d_body<const CB: usize>(
     for ci in 0..cin {
         xp[ci * lp + pad..ci * lp + pad + lin].copy_from_slice(&x[ci * lin..(ci + 1) * lin]);
     }
+    let p = cin * k;
+    // Stride 1 and dilation 1 (most of a U-Net's convolutions): the padded rows are read in
+    // place. Otherwise each block's inputs are gathered into the tile first.
+    let direct = s == 1 && d == 1;
+    // With AVX2's registers (CB = 2), 4 positions × 16 channels when they tile the output
+    // exactly (the screwdriver's 16/8/4), 3 × 16 otherwise.
+    let block = if direct && CB == 2 && lout.is_multiple_of(4) {
+        4
+    } else {
+        T_BLOCK
+    };
     let mut t0 = 0;
     while t0 < lout {
-        let tb = T_BLOCK.min(lout - t0);
-        // Gather the block's inputs: tile[(ci·k + tap)·tb + j] = xp[ci][(t0 + j)·s + tap·d].
-        let tile = &mut tile[..cin * k * tb];
-        for (ci, row) in xp.chunks_exact(lp).enumerate() {
-            for kk in 0..k {
-                let dst = &mut tile[(ci * k + kk) * tb..(ci * k + kk + 1) * tb];
-                for (j, v) in dst.iter_mut().enumerate() {
-                    *v = row[(t0 + j) * s + kk * d];
+        let tb = block.min(lout - t0);
+        let inputs = if direct {
+            Inputs::Rows { xp, lp, k }
+        } else {
+            // tile[(ci·k + tap)·tb + j] = xp[ci][(t0 + j)·s + tap·d].
+            let tile = &mut tile[..p * tb];
+            for (ci, row) in xp.chunks_exact(lp).enumerate() {
+                for kk in 0..k {
+                    let dst = &mut tile[(ci * k + kk) * tb..(ci * k + kk + 1) * tb];
+                    for (j, v) in dst.iter_mut().enumerate() {
+                        *v = row[(t0 + j) * s + kk * d];
+                    }
                 }
             }
-        }
+            Inputs::Tile(tile)
+        };
         match tb {
-            3 => tile_blocks::<3, CB>(tile, w, b, y, cout, lout, t0),
-            2 => tile_blocks::<2, CB>(tile, w, b, y, cout, lout, t0),
-            _ => tile_blocks::<1, CB>(tile, w, b, y, cout, lout, t0),
+            4 => tile_blocks::<4, CB>(inputs, p, w, b, y, cout, lout, t0),
+            3 => tile_blocks::<3, CB>(inputs, p, w, b, y, cout, lout, t0),
+            2 => tile_blocks::<2, CB>(inputs, p, w, b, y, cout, lout, t0),
+            _ => tile_blocks::<1, CB>(inputs, p, w, b, y, cout, lout, t0),
         }
         t0 += tb;
     }
@@ -449,6 +522,8 @@ mod tests {
             (8, 37, 13, 1, 1, 1, 0, 0),
             (4, 9, 11, 5, 3, 2, 2, 1),
             (2, 3, 3, 3, 1, 1, 0, 0),
+            (20, 24, 6, 3, 1, 1, 1, 1),
+            (48, 48, 12, 3, 1, 1, 1, 1),
         ];
         for (seed, &(cin, cout, lin, k, s, d, pb, pe)) in cases.iter().enumerate() {
             let x = rand_vec(cin * lin, seed as u64);
@@ -464,7 +539,10 @@ mod tests {
             let mut temp = vec![f32::NAN; conv1d_temp_len(&g).unwrap()];
             let mut y = vec![0.0; cout * lout];
             conv1d(&g, &x, &mut y, &wp, &bp, &mut temp).unwrap();
-            assert_close(&y, &want, 1e-5);
+            // Not merely close: every sum is the bias plus the products in `(ci, tap)` order,
+            // as the naive loop adds them (a padding product adds ±0), whatever the blocking
+            // and input source, so plans stay the same when either changes.
+            assert_eq!(y, want, "case {seed}");
         }
     }
 
@@ -532,13 +610,19 @@ mod throughput {
     #[test]
     #[ignore = "timing, run by hand"]
     fn conv1d_throughput() {
+        // The shipped denoisers' shapes (widths 48/64/96, k = 3): the screwdriver's time
+        // axis is 16/8/4 long, the card's 12/6/3; up stages read the skip beside their input.
         for &(cin, cout, lin, s) in &[
-            (64, 64, 3, 1),
-            (32, 32, 6, 1),
-            (16, 16, 12, 1),
-            (128, 32, 6, 1),
-            (32, 32, 6, 2),
-            (29, 16, 9, 1),
+            (48, 48, 16, 1),
+            (96, 48, 16, 1),
+            (64, 64, 8, 1),
+            (128, 64, 8, 1),
+            (96, 96, 4, 1),
+            (192, 96, 4, 1),
+            (48, 48, 16, 2),
+            (48, 48, 12, 1),
+            (64, 64, 6, 1),
+            (96, 96, 3, 1),
         ] {
             let k = 3;
             let lout = (lin + 2 - 3) / s + 1;
