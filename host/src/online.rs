@@ -23,7 +23,7 @@ use dips_kernel::engine::DenoiserEngine;
 use dips_kernel::mode::{ModeId, Task};
 use dips_kernel::prior::MarkovPrior;
 use dips_kernel::rng::KernelRng;
-use dips_kernel::search::{SearchConfig, SearchVariant};
+use dips_kernel::search::{CostToCome, SearchConfig, SearchVariant};
 use dips_kernel::session::PlanSpec;
 
 use crate::execute::episode::{CARD_MODES, SCREWDRIVER_MODES};
@@ -126,6 +126,8 @@ pub struct OnlineSettings {
     /// Stop after this many modes (`None`: the task's limit, 7 / 5). The search depth does
     /// not change.
     pub max_modes: Option<usize>,
+    /// How the search forms `g` (`None`: the task's, [`SearchConfig::for_task`]).
+    pub cost_to_come: Option<CostToCome>,
 }
 
 impl Default for OnlineSettings {
@@ -137,6 +139,7 @@ impl Default for OnlineSettings {
             sampler: SamplerConfig::default(),
             sequence: None,
             max_modes: None,
+            cost_to_come: None,
         }
     }
 }
@@ -217,6 +220,7 @@ fn search_config(
             .round()
             .min(f64::from(u32::MAX)) as u32,
         seed,
+        cost_to_come: settings.cost_to_come.unwrap_or(base.cost_to_come),
         ..base
     };
     match method {

@@ -38,6 +38,10 @@ pub struct PlanBenchArgs {
     /// Wall-clock budget of each call in seconds (the paper's: 300).
     #[arg(long, default_value_t = 300.0)]
     pub time_budget_s: f64,
+    /// How the search forms the cost-to-come `g`: `cumulative` (the paper's equation) or
+    /// `last-segment` (the authors' code). Default: the task's (`docs/search.md`).
+    #[arg(long, value_enum)]
+    pub cost_to_come: Option<crate::model::CostToComeArg>,
     /// Models directory (default: the shipped models).
     #[arg(long)]
     pub models: Option<std::path::PathBuf>,
@@ -85,13 +89,15 @@ pub fn run(args: &PlanBenchArgs) -> anyhow::Result<()> {
         .map(|v| v as f32)
         .collect();
     let goal = PlanSpec::paper_goal(task, &start).ok_or_else(|| anyhow!("state too short"))?;
+    let base = SearchConfig::for_task(task);
     let mut calls = Vec::new();
     let mut seconds = Vec::new();
     for i in 0..args.calls {
         let config = SearchConfig {
             seed: args.seed + u64::from(i),
             time_budget_ms: (args.time_budget_s * 1e3).round().min(f64::from(u32::MAX)) as u32,
-            ..SearchConfig::for_task(task)
+            cost_to_come: args.cost_to_come.map_or(base.cost_to_come, Into::into),
+            ..base
         };
         let mut spec = PlanSpec::new(task, &start, goal).map_err(|e| anyhow!("{e}"))?;
         spec.search = config;
@@ -126,6 +132,7 @@ pub fn run(args: &PlanBenchArgs) -> anyhow::Result<()> {
         "models": dir.display().to_string(),
         "engine": format!("{:?}", args.engine).to_lowercase(),
         "sampler": args.sampler,
+        "cost_to_come": args.cost_to_come.map_or(base.cost_to_come, Into::into).name(),
         "start": "the task's start state",
         "threads": threads,
         "simd": simd,

@@ -47,6 +47,10 @@ pub struct EpisodeArgs {
     /// Engine that runs the models.
     #[arg(long, value_enum, default_value_t = EngineArg::Kernel)]
     pub engine: EngineArg,
+    /// How the search forms the cost-to-come `g`: `cumulative` (the paper's equation) or
+    /// `last-segment` (the authors' code). Default: the task's (`docs/search.md`).
+    #[arg(long, value_enum)]
+    pub cost_to_come: Option<crate::model::CostToComeArg>,
     /// Wall-clock budget of each planning call in seconds (the paper's: 300).
     #[arg(long, default_value_t = 300.0)]
     pub time_budget_s: f64,
@@ -118,6 +122,7 @@ pub fn run(args: EpisodeArgs) -> anyhow::Result<()> {
         sampler: dips_host::planning::parse_sampler(&args.sampler)?,
         sequence,
         max_modes: args.max_modes,
+        cost_to_come: args.cost_to_come.map(Into::into),
     };
     let exec = ExecSettings::for_task(task);
     let mut world = World::new(task);

@@ -66,6 +66,10 @@ pub struct PlanArgs {
     /// Most node expansions (0: limited by the planner's capacity).
     #[arg(long, default_value_t = 0)]
     pub node_budget: u32,
+    /// How the search forms the cost-to-come `g`: `cumulative` (the paper's equation) or
+    /// `last-segment` (the authors' code). Default: the task's (`docs/search.md`).
+    #[arg(long, value_enum)]
+    pub cost_to_come: Option<crate::model::CostToComeArg>,
     /// Wall-clock budget in seconds (0: none; the paper's is 300).
     #[arg(long, default_value_t = 300.0)]
     pub time_budget_s: f64,
@@ -99,6 +103,7 @@ pub fn search_config(task: Task, args: &PlanArgs) -> anyhow::Result<SearchConfig
         node_budget: args.node_budget,
         time_budget_ms: (args.time_budget_s * 1e3).round().min(f64::from(u32::MAX)) as u32,
         seed: args.seed,
+        cost_to_come: args.cost_to_come.map_or(base.cost_to_come, Into::into),
         ..base
     };
     config
@@ -211,6 +216,7 @@ pub fn run(args: PlanArgs) -> anyhow::Result<()> {
             "p_min": config.p_min,
             "node_budget": config.node_budget,
             "time_budget_ms": config.time_budget_ms,
+            "cost_to_come": config.cost_to_come.name(),
         },
         "status": format!("{:?}", report.status),
         "modes": names,

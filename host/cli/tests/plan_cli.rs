@@ -121,6 +121,34 @@ fn each_task_plans_with_its_own_search_settings() {
     assert_eq!(card["alpha"].as_f64(), Some(1e5));
     assert_eq!(card["beta"].as_f64(), Some(0.0));
     assert_eq!(card["max_depth"].as_u64(), Some(5));
+    // The cost-to-come is the task's unless --cost-to-come says otherwise.
+    assert_eq!(sd["cost_to_come"].as_str(), Some("cumulative"));
+    assert_eq!(card["cost_to_come"].as_str(), Some("last-segment"));
+    for form in ["cumulative", "last-segment"] {
+        let models = fixtures("torch-card-dynamo");
+        let out = plan(&[
+            "--task",
+            "card",
+            "--models",
+            &models,
+            "--k",
+            "4",
+            "--node-budget",
+            "1",
+            "--sampler",
+            "ddim:8",
+            "--cost-to-come",
+            form,
+            "--json",
+        ])
+        .unwrap();
+        assert_eq!(out["settings"]["cost_to_come"].as_str(), Some(form));
+    }
+    let err = plan(&["--task", "card", "--cost-to-come", "sum"]).unwrap_err();
+    assert!(
+        err.contains("'sum'") && err.contains("cumulative") && err.contains("last-segment"),
+        "{err}"
+    );
 }
 
 #[test]

@@ -111,13 +111,14 @@ pub fn write_report(
     let mut page = Page::new(&format!("dips eval: {}", s.task));
     page.paragraph(&format!(
         "{} methods × {} trials on seeds {}…{}; sampler {}, planning budget {} s per call, \
-         engine {}. Outcome: {}; lower is better.",
+         cost-to-come {}, engine {}. Outcome: {}; lower is better.",
         s.methods.len(),
         s.eval.trials,
         s.eval.first_seed,
         s.eval.first_seed + s.eval.trials.saturating_sub(1) as u64,
         e.sampler,
         e.time_budget_s,
+        e.cost_to_come,
         e.engine,
         s.outcome
     ));

@@ -7,6 +7,7 @@ use dips_datagen::Shard;
 use dips_host::online::{Method, OnlineSettings};
 use dips_host::planning::parse_sampler;
 use dips_host::scenes::SceneKind;
+use dips_kernel::search::{CostToCome, SearchConfig};
 use dips_link::KernelTarget;
 use dips_onnx::EngineKind;
 use serde::{Deserialize, Serialize};
@@ -25,10 +26,19 @@ pub struct EpisodeSettings {
     pub node_budget: u32,
     /// Mode limit per episode (`None`: the task's).
     pub max_modes: Option<usize>,
+    /// How the search formed `g` ([`CostToCome::name`]). Files written before it was
+    /// recorded were all `cumulative`.
+    #[serde(default = "cumulative")]
+    pub cost_to_come: String,
     /// Models directory (absolute).
     pub models: String,
     /// Engine of the models (`kernel` or `tract`).
     pub engine: String,
+}
+
+/// What [`EpisodeSettings::cost_to_come`] was before it was recorded.
+fn cumulative() -> String {
+    CostToCome::Cumulative.name().to_string()
 }
 
 /// One evaluation run (this machine's shard of it).
@@ -135,6 +145,12 @@ impl EvalSettings {
             time_budget_s: self.online.time_budget_s,
             node_budget: self.online.node_budget,
             max_modes: self.online.max_modes,
+            cost_to_come: self
+                .online
+                .cost_to_come
+                .unwrap_or(SearchConfig::for_task(self.task.task()).cost_to_come)
+                .name()
+                .to_string(),
             models: std::path::absolute(&self.models)
                 .unwrap_or_else(|_| self.models.clone())
                 .display()

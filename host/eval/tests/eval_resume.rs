@@ -11,6 +11,7 @@ use dips_host::online::{Method, OnlineSettings};
 use dips_host::planning::{default_models_dir, parse_sampler};
 use dips_host::scenes::SceneKind;
 use dips_kernel::mode::Task;
+use dips_kernel::search::{CostToCome, SearchConfig};
 use dips_onnx::EngineKind;
 
 fn scratch(name: &str) -> PathBuf {
@@ -35,6 +36,7 @@ fn settings(methods: Vec<Method>, trials: usize) -> EvalSettings {
             sampler: parse_sampler("ddim:8").unwrap(),
             sequence: None,
             max_modes: Some(1),
+            cost_to_come: None,
         },
         models: default_models_dir(Task::Card).unwrap(),
         engine: EngineKind::Kernel,
@@ -119,6 +121,12 @@ fn a_killed_eval_resumes_without_redoing_episodes() {
     // Other settings in the same directory are refused, naming eval.json.
     let mut other = settings(vec![Method::CsvtoSampled], 3);
     other.sampler = "ddpm".into();
+    let err = run_eval(&other, &dir).unwrap_err().to_string();
+    assert!(err.contains("eval.json"), "{err}");
+    // So is the other form of the search's cost-to-come than the task's.
+    let mut other = settings(vec![Method::CsvtoSampled], 3);
+    let task_form = SearchConfig::for_task(Task::Card).cost_to_come;
+    other.online.cost_to_come = CostToCome::ALL.into_iter().find(|&c| c != task_form);
     let err = run_eval(&other, &dir).unwrap_err().to_string();
     assert!(err.contains("eval.json"), "{err}");
     let _ = std::fs::remove_dir_all(&dir);

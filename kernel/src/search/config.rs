@@ -18,7 +18,7 @@ pub enum CostToCome {
 }
 
 impl CostToCome {
-    /// Both forms, in the order of their names.
+    /// Both forms.
     pub const ALL: [CostToCome; 2] = [CostToCome::Cumulative, CostToCome::LastSegment];
 
     /// The form's name in settings files and on the command line: `cumulative` or
@@ -28,11 +28,6 @@ impl CostToCome {
             CostToCome::Cumulative => "cumulative",
             CostToCome::LastSegment => "last-segment",
         }
-    }
-
-    /// The form named `name` ([`CostToCome::name`]), if any.
-    pub fn from_name(name: &str) -> Option<Self> {
-        Self::ALL.into_iter().find(|c| c.name() == name)
     }
 }
 
@@ -96,19 +91,28 @@ impl Default for SearchConfig {
 }
 
 impl SearchConfig {
-    /// The authors' card settings: the heuristic is `1e5 · (ȳ − goal)²` with no prior term
-    /// (`α = 1e5`, `β = 0`), depth = modes remaining (5 at the start of a trial).
+    /// The authors' card settings (their `GraphSearchCard`): the heuristic is
+    /// `1e5 · (ȳ − goal)²` with no prior term (`α = 1e5`, `β = 0`), depth = modes remaining
+    /// (5 at the start of a trial), and `g` the expected cost of the last segment
+    /// ([`CostToCome::LastSegment`]), as their code computes it.
+    ///
+    /// With the cumulative `g` of the paper's equation, a push costs about as much in `g` as
+    /// it gains in `h`, so `f` is nearly flat along the pushes and a call from the card's start
+    /// expands 52–68 nodes; with the last segment's cost it expands 5–27 and plans as well
+    /// (`docs/search.md`, "The card's cost-to-come").
     pub fn card() -> Self {
         Self {
             alpha: 1e5,
             beta: 0.0,
             max_depth: 5,
+            cost_to_come: CostToCome::LastSegment,
             ..Self::default()
         }
     }
 
-    /// The paper's settings of `task`, the one place each task's search settings come from:
-    /// the screwdriver's [`SearchConfig::default`], the card's [`SearchConfig::card`].
+    /// Each task's settings, the one place they come from: the screwdriver's
+    /// [`SearchConfig::default`] (the paper's), the card's [`SearchConfig::card`] (the
+    /// authors' code's).
     pub fn for_task(task: Task) -> Self {
         match task {
             Task::Screwdriver => Self::default(),
@@ -187,6 +191,8 @@ mod tests {
         assert_eq!(SearchConfig::for_task(Task::Screwdriver), c);
         let card = SearchConfig::for_task(Task::Card);
         assert_eq!((card.alpha, card.beta, card.max_depth), (1e5, 0.0, 5));
+        assert_eq!(card.cost_to_come, CostToCome::LastSegment);
+        assert_eq!(c.cost_to_come, CostToCome::Cumulative);
     }
 
     #[test]
