@@ -90,13 +90,14 @@ pub fn run(args: &PlanBenchArgs) -> anyhow::Result<()> {
         .collect();
     let goal = PlanSpec::paper_goal(task, &start).ok_or_else(|| anyhow!("state too short"))?;
     let base = SearchConfig::for_task(task);
+    let cost_to_come = args.cost_to_come.map_or(base.cost_to_come, Into::into);
     let mut calls = Vec::new();
     let mut seconds = Vec::new();
     for i in 0..args.calls {
         let config = SearchConfig {
             seed: args.seed + u64::from(i),
             time_budget_ms: (args.time_budget_s * 1e3).round().min(f64::from(u32::MAX)) as u32,
-            cost_to_come: args.cost_to_come.map_or(base.cost_to_come, Into::into),
+            cost_to_come,
             ..base
         };
         let mut spec = PlanSpec::new(task, &start, goal).map_err(|e| anyhow!("{e}"))?;
@@ -132,7 +133,7 @@ pub fn run(args: &PlanBenchArgs) -> anyhow::Result<()> {
         "models": dir.display().to_string(),
         "engine": format!("{:?}", args.engine).to_lowercase(),
         "sampler": args.sampler,
-        "cost_to_come": args.cost_to_come.map_or(base.cost_to_come, Into::into).name(),
+        "cost_to_come": cost_to_come.name(),
         "start": "the task's start state",
         "threads": threads,
         "simd": simd,
