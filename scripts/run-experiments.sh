@@ -1,16 +1,16 @@
 #!/usr/bin/env bash
 # The paper's experiments (issue "DIPS end to end", item 4): `dips eval` for both tasks, every
-# method, 10 trials each, with the shipped models, the default sampler (ddim:16:1) and the
+# method, 10 trials each, with the shipped models, the default sampler (ddpm:16) and the
 # paper's 300 s planning budget per call. The defaults reproduce docs/results/2026-11-26:
-# seeds 3000–3009 (no model was trained on seeds >= 140; these were never looked at before
-# that run), about 15 minutes on 2 cores.
+# seeds 3000–3009 (no model was trained on seeds >= 140; docs/results/README.md says how these
+# seeds were used), 15–20 minutes on 2 cores.
 #
 # Every episode's result.json stays under $WORK/<task>/episodes (not committed); the tables,
 # results.json and plots are copied to $RESULTS/<task>/. Resumable: rerun after a kill.
 # Environment: WORK (default target/eval-work), TRIALS (default 10), FIRST_SEED (default 3000),
 # BUDGET (seconds per planning call, default 300), METHODS (default: all), TASKS (default:
 # card screwdriver), JOBS (episodes at once, default 1), SAMPLER (default: the CLI's,
-# ddim:16:1), COST_TO_COME (cumulative or last-segment; default: the task's), RESULTS (where
+# ddpm:16), COST_TO_COME (cumulative or last-segment; default: the task's), RESULTS (where
 # the tables go, default docs/results/2026-11-26: RESULTS/<task>/).
 set -euo pipefail
 cd "$(dirname "$0")/.."

@@ -91,19 +91,35 @@ impl Clock for ProgressClock<'_> {
     }
 }
 
-/// Parse a sampler name: `ddpm` (the paper's ancestral DDPM over every training step) or
-/// `ddim:STEPS[:ETA]` (DDIM over STEPS ≥ 1 strided steps; η = 0, the default, is
-/// deterministic, η = 1 is ancestral).
+/// Parse a sampler name: `ddpm` (the paper's ancestral DDPM over every training step, noise
+/// factor 0.5), `ddpm:STEPS` (the same posterior and noise factor over STEPS ≥ 1 strided
+/// steps) or `ddim:STEPS[:ETA]` (DDIM over STEPS ≥ 1
+/// strided steps; η = 0, the default, is deterministic, η = 1 is ancestral).
 pub fn parse_sampler(spec: &str) -> anyhow::Result<SamplerConfig> {
+    use dips_kernel::diffusion::{DEFAULT_NOISE_FACTOR, SamplingMethod};
     if spec == "ddpm" {
         return Ok(SamplerConfig::default());
     }
     let bad = || {
         anyhow::anyhow!(
-            "--sampler {spec:?}: expected `ddpm` or `ddim:STEPS[:ETA]` (1 ≤ STEPS ≤ 65535, \
-             0 ≤ ETA ≤ 1)"
+            "--sampler {spec:?}: expected `ddpm`, `ddpm:STEPS` or `ddim:STEPS[:ETA]` \
+             (1 ≤ STEPS ≤ 65535, 0 ≤ ETA ≤ 1)"
         )
     };
+    if let Some(steps) = spec.strip_prefix("ddpm:") {
+        let steps = steps
+            .parse::<u16>()
+            .ok()
+            .filter(|&n| n > 0)
+            .ok_or_else(bad)?;
+        return Ok(SamplerConfig {
+            method: SamplingMethod::DdpmStrided {
+                steps,
+                noise_factor: DEFAULT_NOISE_FACTOR,
+            },
+            ..SamplerConfig::default()
+        });
+    }
     let rest = spec.strip_prefix("ddim:").ok_or_else(bad)?;
     let (steps, eta) = match rest.split_once(':') {
         Some((s, e)) => (s, Some(e)),
@@ -253,16 +269,20 @@ pub struct Models {
 }
 
 impl Models {
-    /// Check that `config` can run on the denoiser: DDIM cannot take more steps than the
-    /// model was trained with. The error names the models and the allowed range.
+    /// Check that `config` can run on the denoiser: a strided sampler cannot take more steps
+    /// than the model was trained with. The error names the models and the allowed range.
     pub fn check_sampler(&self, config: &SamplerConfig) -> anyhow::Result<()> {
+        use dips_kernel::diffusion::SamplingMethod;
         let n = DenoiserEngine::dims(&self.denoiser).diffusion_steps;
-        if let dips_kernel::diffusion::SamplingMethod::Ddim { steps, .. } = config.method
-            && usize::from(steps) > n
-        {
+        let (name, steps) = match config.method {
+            SamplingMethod::Ddim { steps, .. } => ("ddim", steps),
+            SamplingMethod::DdpmStrided { steps, .. } => ("ddpm", steps),
+            SamplingMethod::Ddpm { .. } => return Ok(()),
+        };
+        if usize::from(steps) > n {
             bail!(
-                "--sampler ddim:{steps}: the denoiser in {} was trained with {n} diffusion \
-                 steps; use ddim:S with 1 ≤ S ≤ {n}, or ddpm",
+                "--sampler {name}:{steps}: the denoiser in {} was trained with {n} diffusion \
+                 steps; use ddim:S or ddpm:S with 1 ≤ S ≤ {n}, or ddpm",
                 self.dir.display()
             );
         }

@@ -421,8 +421,9 @@ pub fn prior_from_table(table: &PriorTable) -> Result<(Task, MarkovPrior), Reque
 }
 
 /// The sampler settings of a `SetSampler` request: a DDPM noise factor in `[0, 1]`, at least
-/// one DDIM step (deterministic, η = 0), a finite guidance weight. Bad settings are
-/// [`RequestField::Sampler`]. Whether the DDIM steps fit the model is checked when sampling.
+/// one strided step (DDIM, DDIM with η in `[0, 1]`, strided DDPM), a finite guidance weight.
+/// Bad settings are [`RequestField::Sampler`]. Whether the steps fit the model is checked
+/// when sampling.
 pub fn sampler_from_settings(settings: &SamplerSettings) -> Result<SamplerConfig, RequestField> {
     let method = match settings.method {
         SamplerMethod::Ddpm { noise_factor } if (0.0..=1.0).contains(&noise_factor) => {
@@ -432,6 +433,13 @@ pub fn sampler_from_settings(settings: &SamplerSettings) -> Result<SamplerConfig
         SamplerMethod::DdimEta { steps, eta } if steps > 0 && (0.0..=1.0).contains(&eta) => {
             SamplingMethod::Ddim { steps, eta }
         }
+        SamplerMethod::DdpmStrided {
+            steps,
+            noise_factor,
+        } if steps > 0 && (0.0..=1.0).contains(&noise_factor) => SamplingMethod::DdpmStrided {
+            steps,
+            noise_factor,
+        },
         _ => return Err(RequestField::Sampler),
     };
     if !settings.guidance_weight.is_finite() {
@@ -476,6 +484,13 @@ pub fn settings_from_sampler(config: &SamplerConfig) -> Option<SamplerSettings> 
         SamplingMethod::Ddpm { noise_factor } => SamplerMethod::Ddpm { noise_factor },
         SamplingMethod::Ddim { steps, eta: 0.0 } => SamplerMethod::Ddim { steps },
         SamplingMethod::Ddim { steps, eta } => SamplerMethod::DdimEta { steps, eta },
+        SamplingMethod::DdpmStrided {
+            steps,
+            noise_factor,
+        } => SamplerMethod::DdpmStrided {
+            steps,
+            noise_factor,
+        },
     };
     Some(SamplerSettings {
         method,

@@ -402,3 +402,31 @@ fn a_framed_request_is_planned_and_its_reply_matches_the_report() {
     assert_eq!(reply.status, PlanStatus::InvalidProblem);
     assert!(reply.modes.is_empty() && reply.terminal_state.is_empty());
 }
+
+#[test]
+fn the_strided_ddpm_round_trips_on_the_wire_and_bad_settings_are_named() {
+    use dips_kernel::diffusion::SamplingMethod;
+    let strided = SamplerConfig {
+        method: SamplingMethod::DdpmStrided {
+            steps: 16,
+            noise_factor: 0.5,
+        },
+        ..SamplerConfig::default()
+    };
+    let settings = settings_from_sampler(&strided).unwrap();
+    assert_eq!(sampler_from_settings(&settings), Ok(strided));
+    for (steps, noise_factor) in [(0, 0.5), (16, 1.5), (16, f32::NAN)] {
+        let bad = dips_wire::SamplerSettings {
+            method: dips_wire::SamplerMethod::DdpmStrided {
+                steps,
+                noise_factor,
+            },
+            ..settings
+        };
+        assert_eq!(
+            sampler_from_settings(&bad),
+            Err(RequestField::Sampler),
+            "{steps} {noise_factor}"
+        );
+    }
+}

@@ -18,11 +18,12 @@ use dips_link::{KernelTarget, RemotePlanner};
 use crate::model::EngineArg;
 
 /// The sampler of `dips episode`, `dips eval`, `dips plan` and `dips bench plan` when none
-/// is given: 16 strided ancestral steps (DDIM with η = 1), 16 times fewer denoiser calls than
-/// the paper's DDPM-256 (`--sampler ddpm`). Deterministic DDIM (η = 0) is faster still but
-/// misplaces the object: on the card its regrasp segments moved the card 1.4 cm on average
-/// (real: 0), this sampler's 0.6 cm, DDPM's 0.2 cm (`docs/online.md`, "Sampler").
-pub const DEFAULT_SAMPLER: &str = "ddim:16:1";
+/// is given: the paper's ancestral DDPM (posterior noise × 0.5) over 16 strided steps, 16
+/// times fewer denoiser calls than its DDPM-256 (`--sampler ddpm`). On the screwdriver it
+/// planned as well as DDPM-256 where strided DDIM (`ddim:16:1`, the default until
+/// 2026-11-26) did not; deterministic DDIM (η = 0) misplaces the object (`docs/online.md`,
+/// "Sampler").
+pub const DEFAULT_SAMPLER: &str = "ddpm:16";
 
 /// Arguments of `dips episode`.
 #[derive(Debug, Args)]

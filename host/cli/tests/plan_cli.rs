@@ -161,6 +161,30 @@ fn a_sampler_beyond_the_models_steps_is_refused() {
     );
     let err = plan(&["--task", "card", "--sampler", "ddim:8:2"]).unwrap_err();
     assert!(err.contains("0 ≤ ETA ≤ 1"), "{err}");
+    // The strided DDPM takes its steps as DDIM does, and the same bound.
+    let err = plan(&["--task", "card", "--sampler", "ddpm:300"]).unwrap_err();
+    assert!(
+        err.contains("ddpm:300") && err.contains("1 ≤ S ≤ 256"),
+        "{err}"
+    );
+    let err = plan(&["--task", "card", "--sampler", "ddpm:0"]).unwrap_err();
+    assert!(err.contains("`ddpm:STEPS`"), "{err}");
+    let models = fixtures("torch-card-dynamo");
+    let out = plan(&[
+        "--task",
+        "card",
+        "--models",
+        &models,
+        "--k",
+        "4",
+        "--node-budget",
+        "1",
+        "--sampler",
+        "ddpm:8",
+        "--json",
+    ])
+    .unwrap();
+    assert_eq!(out["sampler"].as_str(), Some("ddpm:8"));
 }
 
 #[test]
@@ -208,7 +232,9 @@ fn goals_beyond_a_half_turn_plan_modes() {
 
 #[test]
 fn a_call_over_a_second_reports_progress_on_stderr_and_keeps_stdout_the_result() {
-    // The shipped card models over a 2.5 s budget: lines on stderr while it runs.
+    // The shipped card models over a 2.5 s budget: lines on stderr while it runs. With the
+    // cumulative cost-to-come a call from the card's start needs 50+ expansions (5 s or more
+    // here), so it runs into the budget on any machine.
     let out = Command::new(env!("CARGO_BIN_EXE_dips"))
         .args([
             "plan",
@@ -216,6 +242,8 @@ fn a_call_over_a_second_reports_progress_on_stderr_and_keeps_stdout_the_result()
             "card",
             "--seed",
             "1",
+            "--cost-to-come",
+            "cumulative",
             "--time-budget-s",
             "2.5",
             "--json",

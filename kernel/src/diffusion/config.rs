@@ -21,6 +21,17 @@ pub enum SamplingMethod {
         /// Multiplier of the posterior standard deviation.
         noise_factor: f32,
     },
+    /// Ancestral DDPM over `steps` evenly spaced training steps (`1 ≤ steps ≤
+    /// diffusion_steps`, the same steps as [`SamplingMethod::Ddim`]): each step draws from the
+    /// posterior `q(x_t' | x_t, x̂0)` of the jump `t → t'`, its standard deviation scaled by
+    /// `noise_factor` as in [`SamplingMethod::Ddpm`]. With `steps` = every training step it is
+    /// that sampler up to rounding (the jump's β is `1 − ᾱ_t/ᾱ_t'` instead of the schedule's).
+    DdpmStrided {
+        /// Number of denoising steps.
+        steps: u16,
+        /// Multiplier of the posterior standard deviation.
+        noise_factor: f32,
+    },
     /// DDIM over `steps` evenly spaced training steps (`1 ≤ steps ≤ diffusion_steps`);
     /// `eta` 0 is deterministic, 1 matches DDPM's variance.
     Ddim {

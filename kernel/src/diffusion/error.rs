@@ -67,7 +67,7 @@ pub enum SamplerError {
     BadDims,
     /// The model's normalization does not have `D` finite entries with positive std.
     BadNormalization,
-    /// DDIM steps outside `1..=diffusion_steps`.
+    /// Steps of a strided sampler (DDIM or strided DDPM) outside `1..=diffusion_steps`.
     DdimSteps {
         /// Steps asked for.
         steps: u16,
@@ -115,7 +115,10 @@ impl fmt::Display for SamplerError {
             Self::DdimSteps {
                 steps,
                 diffusion_steps,
-            } => write!(f, "DDIM steps {steps} outside 1..={diffusion_steps}"),
+            } => write!(
+                f,
+                "strided sampler steps {steps} outside 1..={diffusion_steps}"
+            ),
             Self::BadConfig => f.write_str(
                 "sampler settings out of range (allowed: finite guidance weight, noise factor and η ≥ 0, clip_denoised > 0)",
             ),

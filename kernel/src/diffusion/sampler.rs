@@ -1,5 +1,6 @@
-//! The reverse diffusion loops: DDPM (ancestral) and DDIM, with classifier-free guidance in
-//! one engine call per step and inpainting of the start state.
+//! The reverse diffusion loops: DDPM (ancestral, over every or over strided training steps)
+//! and DDIM, with classifier-free guidance in one engine call per step and inpainting of the
+//! start state.
 
 use crate::diffusion::config::{SamplerConfig, SamplingMethod};
 use crate::diffusion::error::{SampleError, SamplerError};
@@ -69,6 +70,33 @@ impl StepCoefficients {
         }
     }
 
+    /// The DDPM posterior of the jump from step `t` to `t_next` (`None`: to the clean
+    /// sample), its standard deviation scaled by `noise_factor`.
+    fn ddpm_strided(t: usize, t_next: Option<usize>, alpha_bar: &[f32], noise_factor: f32) -> Self {
+        let ab = alpha_bar.get(t).copied().unwrap_or(1.0);
+        let ab_next = t_next
+            .and_then(|n| alpha_bar.get(n).copied())
+            .unwrap_or(1.0);
+        // β of the jump: 1 − ᾱ_t / ᾱ_t'.
+        let beta = 1.0 - ab / ab_next;
+        let one_minus_ab = 1.0 - ab;
+        let variance = beta * (1.0 - ab_next) / one_minus_ab;
+        // No noise on the last step, as in the full sampler.
+        let sigma = match t_next {
+            Some(_) => noise_factor * libm::sqrtf(variance.max(MIN_POSTERIOR_VARIANCE)),
+            None => 0.0,
+        };
+        Self {
+            t: t as f32,
+            r: libm::sqrtf(1.0 / ab),
+            r1: libm::sqrtf(1.0 / ab - 1.0),
+            a: beta * libm::sqrtf(ab_next) / one_minus_ab,
+            b: (1.0 - ab_next) * libm::sqrtf(1.0 - beta) / one_minus_ab,
+            c: 0.0,
+            sigma,
+        }
+    }
+
     /// DDIM from step `t` to `t_next` (`None`: to the clean sample).
     fn ddim(t: usize, t_next: Option<usize>, alpha_bar: &[f32], eta: f32) -> Self {
         let ab = alpha_bar.get(t).copied().unwrap_or(1.0);
@@ -131,16 +159,17 @@ pub fn sample<E: DenoiserEngine>(
                 step(engine, config, request, rng, scratch, out, chunk, &k)?;
             }
         }
+        SamplingMethod::DdpmStrided {
+            steps: s,
+            noise_factor,
+        } => {
+            for (t, t_next) in strided_steps(usize::from(s), steps) {
+                let k = StepCoefficients::ddpm_strided(t, t_next, scratch.alpha_bar, noise_factor);
+                step(engine, config, request, rng, scratch, out, chunk, &k)?;
+            }
+        }
         SamplingMethod::Ddim { steps: s, eta } => {
-            let s = usize::from(s);
-            // Training steps visited ("leading" spacing): time_k = floor(k·N/S) for
-            // k = S−1, …, 0; the step from time_0 = 0 goes to the clean sample. With S = N
-            // these are DDPM's steps. Starting at N−1 instead (where ᾱ ≈ 4e-8 under the cosine
-            // schedule) makes the first x̂₀ = (x − √(1−ᾱ) ε̂)/√ᾱ hopelessly ill-conditioned for
-            // a few-step sampler (`docs/training.md`).
-            for k in (0..s).rev() {
-                let t = k * steps / s;
-                let t_next = k.checked_sub(1).map(|j| j * steps / s);
+            for (t, t_next) in strided_steps(usize::from(s), steps) {
                 let c = StepCoefficients::ddim(t, t_next, scratch.alpha_bar, eta);
                 step(engine, config, request, rng, scratch, out, chunk, &c)?;
             }
@@ -170,6 +199,17 @@ pub fn sample<E: DenoiserEngine>(
         }
     }
     Ok(n)
+}
+
+/// The `(t, t_next)` jumps of a sampler over `s` of the `n` training steps ("leading"
+/// spacing): `t_k = ⌊k·n/s⌋` for `k = s−1, …, 0`, the jump from `t_0 = 0` going to the clean
+/// sample (`None`). With `s = n` these are DDPM's steps. Starting at `n − 1` instead (where
+/// ᾱ ≈ 4e-8 under the cosine schedule) makes the first `x̂₀ = (x − √(1−ᾱ) ε̂)/√ᾱ` hopelessly
+/// ill-conditioned for a few-step sampler (`docs/training.md`).
+fn strided_steps(s: usize, n: usize) -> impl Iterator<Item = (usize, Option<usize>)> {
+    (0..s)
+        .rev()
+        .map(move |k| (k * n / s, k.checked_sub(1).map(|j| j * n / s)))
 }
 
 /// Check the call; returns the number of trajectories.
@@ -224,13 +264,16 @@ fn validate<E: DenoiserEngine>(
         return Err(SamplerError::BadConfig);
     }
     match config.method {
-        SamplingMethod::Ddpm { noise_factor } if !finite_non_negative(noise_factor) => {
+        SamplingMethod::Ddpm { noise_factor }
+        | SamplingMethod::DdpmStrided { noise_factor, .. }
+            if !finite_non_negative(noise_factor) =>
+        {
             Err(SamplerError::BadConfig)
         }
         SamplingMethod::Ddim { eta, .. } if !finite_non_negative(eta) => {
             Err(SamplerError::BadConfig)
         }
-        SamplingMethod::Ddim { steps, .. }
+        SamplingMethod::Ddim { steps, .. } | SamplingMethod::DdpmStrided { steps, .. }
             if steps == 0 || usize::from(steps) > dims.diffusion_steps =>
         {
             Err(SamplerError::DdimSteps {

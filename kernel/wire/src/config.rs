@@ -45,12 +45,20 @@ pub enum SamplerMethod {
         steps: u16,
     },
     /// DDIM over `steps` evenly spaced training steps with stochasticity `eta` in `[0, 1]`
-    /// (1 matches DDPM's variance; the hosts' default sampler `ddim:16:1`). Appended.
+    /// (1 matches DDPM's variance). Appended.
     DdimEta {
         /// Denoising steps, at least 1 and at most the model's training steps.
         steps: u16,
         /// Stochasticity η in `[0, 1]`.
         eta: f32,
+    },
+    /// Ancestral DDPM over `steps` evenly spaced training steps, each jump's posterior noise
+    /// scaled by `noise_factor` (the hosts' `ddpm:S`; their default is `ddpm:16`). Appended.
+    DdpmStrided {
+        /// Denoising steps, at least 1 and at most the model's training steps.
+        steps: u16,
+        /// Multiplier of the posterior standard deviation, in `[0, 1]`.
+        noise_factor: f32,
     },
 }
 

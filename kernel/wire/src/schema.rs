@@ -39,7 +39,7 @@ WireError{0:BadFrame,1:TooLong{len_bytes:u32,max_bytes:u32},2:DecodeFailed,3:Unk
 ModelFault{0:Invalid,1:WrongShape,2:TooLarge{needed_floats:u32,capacity_floats:u32}};\
 RequestField{0:StartState,1:Goal,2:Settings,3:PreviousMode,4:Prior,5:Sampler};\
 PriorTable{task:Task,probabilities:Vec<f32,20>};\
-SamplerMethod{0:Ddpm{noise_factor:f32},1:Ddim{steps:u16},2:DdimEta{steps:u16,eta:f32}};SamplerSettings{method:SamplerMethod,guidance_weight:f32};\
+SamplerMethod{0:Ddpm{noise_factor:f32},1:Ddim{steps:u16},2:DdimEta{steps:u16,eta:f32},3:DdpmStrided{steps:u16,noise_factor:f32}};SamplerSettings{method:SamplerMethod,guidance_weight:f32};\
 UploadError{0:NotStarted,1:TooLarge{total_len_bytes:u32,capacity_bytes:u32},\
 2:BadOffset{expected_offset_bytes:u32,got_offset_bytes:u32},3:Overflow{end_offset_bytes:u32,total_len_bytes:u32},\
 4:Incomplete{received_bytes:u32,total_len_bytes:u32},5:CrcMismatch{expected_crc32:u32,computed_crc32:u32}};\

@@ -64,6 +64,10 @@ fn canonical_sampler_methods() -> std::vec::Vec<SamplerMethod> {
             steps: 16,
             eta: 1.0,
         },
+        SamplerMethod::DdpmStrided {
+            steps: 16,
+            noise_factor: 0.5,
+        },
     ]
 }
 
@@ -227,7 +231,7 @@ const GOLDEN_ERRORS: [&str; 13] = [
     "0507040a0500",
     "0407040b0502ac020200",
 ];
-const GOLDEN_SCHEMA_KEY: u64 = 0x0179_12d0_4fe4_e273;
+const GOLDEN_SCHEMA_KEY: u64 = 0x6030_40bb_89db_c0cc;
 
 #[test]
 fn schema_key_is_pinned() {
@@ -325,8 +329,11 @@ fn plan_status_golden_bytes() {
     assert_eq!(actual, GOLDEN_STATUSES, "actual: {actual:#?}");
 }
 
-const GOLDEN_SAMPLER_METHODS: [&str; 2] =
-    ["030706010101063f9a99993f00", "05070602100107803f9a99993f00"];
+const GOLDEN_SAMPLER_METHODS: [&str; 3] = [
+    "030706010101063f9a99993f00",
+    "05070602100107803f9a99993f00",
+    "05070603100101063f9a99993f00",
+];
 
 #[test]
 fn sampler_method_golden_bytes() {

@@ -236,13 +236,17 @@ pub fn to_kernel() -> impl Strategy<Value = ToKernel> {
                 probabilities,
             })
         }),
-        (0u8..3, finite_f32(), any::<u16>(), finite_f32()).prop_map(
+        (0u8..4, finite_f32(), any::<u16>(), finite_f32()).prop_map(
             |(kind, x, steps, guidance_weight)| {
                 ToKernel::SetSampler(SamplerSettings {
                     method: match kind {
                         0 => SamplerMethod::Ddpm { noise_factor: x },
                         1 => SamplerMethod::Ddim { steps },
-                        _ => SamplerMethod::DdimEta { steps, eta: x },
+                        2 => SamplerMethod::DdimEta { steps, eta: x },
+                        _ => SamplerMethod::DdpmStrided {
+                            steps,
+                            noise_factor: x,
+                        },
                     },
                     guidance_weight,
                 })
