@@ -93,8 +93,8 @@ impl Clock for ProgressClock<'_> {
 
 /// Parse a sampler name: `ddpm` (the paper's ancestral DDPM over every training step, noise
 /// factor 0.5), `ddpm:STEPS` (the same posterior and noise factor over STEPS ≥ 1 strided
-/// steps) or `ddim:STEPS[:ETA]` (DDIM over STEPS ≥ 1
-/// strided steps; η = 0, the default, is deterministic, η = 1 is ancestral).
+/// steps) or `ddim:STEPS[:ETA]` (DDIM over STEPS ≥ 1 strided steps; η = 0, the default, is
+/// deterministic, η = 1 is ancestral).
 pub fn parse_sampler(spec: &str) -> anyhow::Result<SamplerConfig> {
     use dips_kernel::diffusion::{DEFAULT_NOISE_FACTOR, SamplingMethod};
     if spec == "ddpm" {
@@ -106,12 +106,9 @@ pub fn parse_sampler(spec: &str) -> anyhow::Result<SamplerConfig> {
              (1 ≤ STEPS ≤ 65535, 0 ≤ ETA ≤ 1)"
         )
     };
+    let parse_steps = |s: &str| s.parse::<u16>().ok().filter(|&n| n > 0).ok_or_else(bad);
     if let Some(steps) = spec.strip_prefix("ddpm:") {
-        let steps = steps
-            .parse::<u16>()
-            .ok()
-            .filter(|&n| n > 0)
-            .ok_or_else(bad)?;
+        let steps = parse_steps(steps)?;
         return Ok(SamplerConfig {
             method: SamplingMethod::DdpmStrided {
                 steps,
@@ -125,11 +122,7 @@ pub fn parse_sampler(spec: &str) -> anyhow::Result<SamplerConfig> {
         Some((s, e)) => (s, Some(e)),
         None => (rest, None),
     };
-    let steps = steps
-        .parse::<u16>()
-        .ok()
-        .filter(|&n| n > 0)
-        .ok_or_else(bad)?;
+    let steps = parse_steps(steps)?;
     let mut config = SamplerConfig::ddim(steps);
     if let Some(e) = eta {
         let eta = e
@@ -137,7 +130,7 @@ pub fn parse_sampler(spec: &str) -> anyhow::Result<SamplerConfig> {
             .ok()
             .filter(|v| (0.0..=1.0).contains(v))
             .ok_or_else(bad)?;
-        config.method = dips_kernel::diffusion::SamplingMethod::Ddim { steps, eta };
+        config.method = SamplingMethod::Ddim { steps, eta };
     }
     Ok(config)
 }

@@ -721,7 +721,7 @@ fn bad_calls_get_typed_errors() {
             2 * td,
             &mut buf
         ),
-        err(SamplerError::DdimSteps {
+        err(SamplerError::StridedSteps {
             steps: 0,
             diffusion_steps: STEPS
         })
@@ -735,7 +735,7 @@ fn bad_calls_get_typed_errors() {
             2 * td,
             &mut buf
         ),
-        err(SamplerError::DdimSteps {
+        err(SamplerError::StridedSteps {
             steps: 257,
             diffusion_steps: STEPS
         })

@@ -68,7 +68,7 @@ pub enum SamplerError {
     /// The model's normalization does not have `D` finite entries with positive std.
     BadNormalization,
     /// Steps of a strided sampler (DDIM or strided DDPM) outside `1..=diffusion_steps`.
-    DdimSteps {
+    StridedSteps {
         /// Steps asked for.
         steps: u16,
         /// The model's diffusion steps.
@@ -112,7 +112,7 @@ impl fmt::Display for SamplerError {
             Self::BadNormalization => {
                 f.write_str("model normalization is not D finite means and positive stds")
             }
-            Self::DdimSteps {
+            Self::StridedSteps {
                 steps,
                 diffusion_steps,
             } => write!(

@@ -276,7 +276,7 @@ fn validate<E: DenoiserEngine>(
         SamplingMethod::Ddim { steps, .. } | SamplingMethod::DdpmStrided { steps, .. }
             if steps == 0 || usize::from(steps) > dims.diffusion_steps =>
         {
-            Err(SamplerError::DdimSteps {
+            Err(SamplerError::StridedSteps {
                 steps,
                 diffusion_steps: dims.diffusion_steps,
             })
