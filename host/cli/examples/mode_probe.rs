@@ -3,7 +3,7 @@
 //!
 //! For every executed mode of each `result.json` given (written by `dips episode` or
 //! `dips eval`), samples 64 segments of that mode from its executed start state, as the
-//! planner does (the default sampler `dips_cli::episode::DEFAULT_SAMPLER`, the task's
+//! planner does (the default sampler `dips_cli::search_args::DEFAULT_SAMPLER`, the task's
 //! invariant angle) and prints: the executed and the mean diffused change of the task's
 //! progress coordinate (yaw in rad, card y in m), the mean first-step joint jump `‖q₁ − q₀‖`
 //! of the diffused segments (the model's start consistency), and Ψ's mean score and
@@ -57,7 +57,7 @@ fn probe() -> anyhow::Result<()> {
     if files.is_empty() {
         bail!("usage: mode_probe [--models DIR] RESULT.json ...");
     }
-    let sampler = parse_sampler(dips_cli::episode::DEFAULT_SAMPLER)?;
+    let sampler = parse_sampler(dips_cli::search_args::DEFAULT_SAMPLER)?;
     for file in files {
         let text = std::fs::read_to_string(&file)
             .with_context(|| format!("reading {}", file.display()))?;

@@ -44,7 +44,7 @@ pub struct FirmwareBenchArgs {
     #[arg(long)]
     pub models: Option<std::path::PathBuf>,
     /// Diffusion sampler of the measured call (the stack and memory do not depend on it).
-    #[arg(long, default_value = crate::episode::DEFAULT_SAMPLER)]
+    #[arg(long, default_value = crate::search_args::DEFAULT_SAMPLER)]
     pub sampler: String,
     /// Expansions of the measured call (the stack and memory do not depend on it).
     #[arg(long, default_value_t = 2)]

@@ -10,7 +10,7 @@ use std::time::Instant;
 use anyhow::{Context, anyhow};
 use clap::Args;
 use dips_eval::summary::Stats;
-use dips_host::planning::{Models, PaperSession, StdClock, models_dir, parse_sampler};
+use dips_host::planning::{Models, PaperSession, StdClock, models_dir};
 use dips_host::problems::contract::contract_state;
 use dips_host::scenes::SceneKind;
 use dips_host::world::World;
@@ -32,16 +32,9 @@ pub struct PlanBenchArgs {
     /// First seed.
     #[arg(long, default_value_t = 0, allow_negative_numbers = true)]
     pub seed: u64,
-    /// Diffusion sampler: `ddpm` or `ddim:STEPS`.
-    #[arg(long, default_value = crate::episode::DEFAULT_SAMPLER)]
-    pub sampler: String,
-    /// Wall-clock budget of each call in seconds (the paper's: 300).
-    #[arg(long, default_value_t = 300.0)]
-    pub time_budget_s: f64,
-    /// How the search forms the cost-to-come `g`: `cumulative` (the paper's equation) or
-    /// `last-segment` (the authors' code). Default: the task's (`docs/search.md`).
-    #[arg(long, value_enum)]
-    pub cost_to_come: Option<crate::model::CostToComeArg>,
+    /// The search's flags.
+    #[command(flatten)]
+    pub search: crate::search_args::SearchArgs,
     /// Models directory (default: the shipped models).
     #[arg(long)]
     pub models: Option<std::path::PathBuf>,
@@ -71,12 +64,10 @@ pub fn run(args: &PlanBenchArgs) -> anyhow::Result<()> {
     if args.calls == 0 {
         anyhow::bail!("--calls must be at least 1");
     }
-    if !(args.time_budget_s.is_finite() && args.time_budget_s >= 0.0) {
-        anyhow::bail!("--time-budget-s must be a finite number of seconds ≥ 0");
-    }
+    let time_budget_ms = args.search.time_budget_ms()?;
     let task = scene.task();
     let simd = args.simd.apply();
-    let sampler = parse_sampler(&args.sampler)?;
+    let sampler = args.search.sampler_config()?;
     let dir = models_dir(args.models.as_deref(), task)?;
     let mut models = Models::load(args.engine.into(), &dir, task)?;
     let threads = crate::model::threads(args.threads)?;
@@ -90,13 +81,14 @@ pub fn run(args: &PlanBenchArgs) -> anyhow::Result<()> {
         .collect();
     let goal = PlanSpec::paper_goal(task, &start).ok_or_else(|| anyhow!("state too short"))?;
     let base = SearchConfig::for_task(task);
-    let cost_to_come = args.cost_to_come.map_or(base.cost_to_come, Into::into);
+    let cost_to_come = args.search.cost_to_come().unwrap_or(base.cost_to_come);
     let mut calls = Vec::new();
     let mut seconds = Vec::new();
     for i in 0..args.calls {
         let config = SearchConfig {
             seed: args.seed + u64::from(i),
-            time_budget_ms: (args.time_budget_s * 1e3).round().min(f64::from(u32::MAX)) as u32,
+            time_budget_ms,
+            node_budget: args.search.node_budget,
             cost_to_come,
             ..base
         };
@@ -132,7 +124,7 @@ pub fn run(args: &PlanBenchArgs) -> anyhow::Result<()> {
         "task": task.name(),
         "models": dir.display().to_string(),
         "engine": format!("{:?}", args.engine).to_lowercase(),
-        "sampler": args.sampler,
+        "sampler": args.search.sampler,
         "cost_to_come": cost_to_come.name(),
         "start": "the task's start state",
         "threads": threads,

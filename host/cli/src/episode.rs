@@ -16,14 +16,7 @@ use dips_host::world::World;
 use dips_link::{KernelTarget, RemotePlanner};
 
 use crate::model::EngineArg;
-
-/// The sampler of `dips episode`, `dips eval`, `dips plan` and `dips bench plan` when none
-/// is given: the paper's ancestral DDPM (posterior noise × 0.5) over 16 strided steps, 16
-/// times fewer denoiser calls than its DDPM-256 (`--sampler ddpm`). On the screwdriver it
-/// planned as well as DDPM-256 where strided DDIM (`ddim:16:1`, the default until
-/// 2026-11-26) did not; deterministic DDIM (η = 0) misplaces the object (`docs/online.md`,
-/// "Sampler").
-pub const DEFAULT_SAMPLER: &str = "ddpm:16";
+use crate::search_args::SearchArgs;
 
 /// Arguments of `dips episode`.
 #[derive(Debug, Args)]
@@ -48,19 +41,9 @@ pub struct EpisodeArgs {
     /// Engine that runs the models.
     #[arg(long, value_enum, default_value_t = EngineArg::Kernel)]
     pub engine: EngineArg,
-    /// How the search forms the cost-to-come `g`: `cumulative` (the paper's equation) or
-    /// `last-segment` (the authors' code). Default: the task's (`docs/search.md`).
-    #[arg(long, value_enum)]
-    pub cost_to_come: Option<crate::model::CostToComeArg>,
-    /// Wall-clock budget of each planning call in seconds (the paper's: 300).
-    #[arg(long, default_value_t = 300.0)]
-    pub time_budget_s: f64,
-    /// Most node expansions per planning call (0: the planner's capacity).
-    #[arg(long, default_value_t = 0)]
-    pub node_budget: u32,
-    /// Diffusion sampler of the search and the initialisation: `ddpm` or `ddim:STEPS`.
-    #[arg(long, default_value = DEFAULT_SAMPLER)]
-    pub sampler: String,
+    /// The search's flags.
+    #[command(flatten)]
+    pub search: SearchArgs,
     /// Stop after this many modes (default: the task's 7 / 5; the search depth stays).
     #[arg(long)]
     pub max_modes: Option<usize>,
@@ -93,9 +76,8 @@ pub fn run(args: EpisodeArgs) -> anyhow::Result<()> {
     if args.max_modes == Some(0) {
         bail!("--max-modes must be at least 1");
     }
-    if !(args.time_budget_s.is_finite() && args.time_budget_s >= 0.0) {
-        bail!("--time-budget-s must be a finite number of seconds ≥ 0");
-    }
+    let time_budget_s = args.search.time_budget_s()?;
+    let sampler = args.search.sampler_config()?;
     let sequence: Option<Vec<Mode>> = match &args.modes {
         Some(names) => Some(
             names
@@ -112,18 +94,18 @@ pub fn run(args: EpisodeArgs) -> anyhow::Result<()> {
         let dir = models_dir(args.models.as_deref(), task.task())?;
         let mut models = Models::load(args.engine.into(), &dir, task.task())?;
         models.set_threads(crate::model::threads(args.threads)?);
-        models.check_sampler(&dips_host::planning::parse_sampler(&args.sampler)?)?;
+        models.check_sampler(&sampler)?;
         Some(models)
     } else {
         None
     };
     let settings = OnlineSettings {
-        time_budget_s: args.time_budget_s,
-        node_budget: args.node_budget,
-        sampler: dips_host::planning::parse_sampler(&args.sampler)?,
+        time_budget_s,
+        node_budget: args.search.node_budget,
+        sampler,
         sequence,
         max_modes: args.max_modes,
-        cost_to_come: args.cost_to_come.map(Into::into),
+        cost_to_come: args.search.cost_to_come(),
     };
     let exec = ExecSettings::for_task(task);
     let mut world = World::new(task);

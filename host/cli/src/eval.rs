@@ -10,7 +10,7 @@ use dips_link::KernelTarget;
 use dips_datagen::Shard;
 use dips_eval::{EvalSettings, run_eval, summarize};
 use dips_host::online::{Method, OnlineSettings};
-use dips_host::planning::{models_dir, parse_sampler};
+use dips_host::planning::models_dir;
 use dips_host::scenes::SceneKind;
 
 use crate::model::EngineArg;
@@ -51,19 +51,9 @@ pub struct EvalArgs {
     /// Engine that runs the models.
     #[arg(long, value_enum, default_value_t = EngineArg::Kernel)]
     pub engine: EngineArg,
-    /// Diffusion sampler of the search and the initialisation: `ddpm` or `ddim:STEPS`.
-    #[arg(long, default_value = crate::episode::DEFAULT_SAMPLER)]
-    pub sampler: String,
-    /// How the search forms the cost-to-come `g`: `cumulative` (the paper's equation) or
-    /// `last-segment` (the authors' code). Default: the task's (`docs/search.md`).
-    #[arg(long, value_enum)]
-    pub cost_to_come: Option<crate::model::CostToComeArg>,
-    /// Wall-clock budget of each planning call in seconds (the paper's: 300).
-    #[arg(long, default_value_t = 300.0)]
-    pub time_budget_s: f64,
-    /// Most node expansions per planning call (0: the planner's capacity).
-    #[arg(long, default_value_t = 0)]
-    pub node_budget: u32,
+    /// The search's flags.
+    #[command(flatten)]
+    pub search: crate::search_args::SearchArgs,
     /// Where the planning calls are made: `in-process`, `spawn` (a `dips-firmware-sim` child
     /// per episode), `spawn:PATH` or `tcp://HOST:PORT` (with `--jobs 1`). The results are the
     /// same bit for bit.
@@ -137,14 +127,14 @@ pub fn run(args: EvalArgs) -> anyhow::Result<()> {
         shard: args.shard,
         jobs,
         model_threads,
-        sampler: args.sampler.clone(),
+        sampler: args.search.sampler.clone(),
         online: OnlineSettings {
-            time_budget_s: args.time_budget_s,
-            node_budget: args.node_budget,
-            sampler: parse_sampler(&args.sampler)?,
+            time_budget_s: args.search.time_budget_s()?,
+            node_budget: args.search.node_budget,
+            sampler: args.search.sampler_config()?,
             sequence: None,
             max_modes: args.max_modes,
-            cost_to_come: args.cost_to_come.map(Into::into),
+            cost_to_come: args.search.cost_to_come(),
         },
         models: models_dir(args.models.as_deref(), task.task())?,
         engine: args.engine.into(),

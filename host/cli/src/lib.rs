@@ -16,6 +16,7 @@ pub mod model_quality;
 pub mod output;
 pub mod plan;
 pub mod render;
+pub mod search_args;
 pub mod sim;
 pub mod train;
 

@@ -93,24 +93,6 @@ impl SimdArg {
     }
 }
 
-/// How the search forms the cost-to-come `g` (`--cost-to-come`).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
-pub enum CostToComeArg {
-    /// `g` = the sum of the expected segment costs along the sequence (the paper's equation).
-    Cumulative,
-    /// `g` = the expected cost of the last segment only (the authors' code).
-    LastSegment,
-}
-
-impl From<CostToComeArg> for dips_kernel::search::CostToCome {
-    fn from(c: CostToComeArg) -> Self {
-        match c {
-            CostToComeArg::Cumulative => Self::Cumulative,
-            CostToComeArg::LastSegment => Self::LastSegment,
-        }
-    }
-}
-
 /// The threads of a model call from `--threads` (default: every core); 0 is refused.
 pub fn threads(given: Option<usize>) -> anyhow::Result<usize> {
     match given {

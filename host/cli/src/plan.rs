@@ -63,19 +63,9 @@ pub struct PlanArgs {
     /// Search depth (default: screwdriver 7, card 5).
     #[arg(long)]
     pub depth: Option<u8>,
-    /// Most node expansions (0: limited by the planner's capacity).
-    #[arg(long, default_value_t = 0)]
-    pub node_budget: u32,
-    /// How the search forms the cost-to-come `g`: `cumulative` (the paper's equation) or
-    /// `last-segment` (the authors' code). Default: the task's (`docs/search.md`).
-    #[arg(long, value_enum)]
-    pub cost_to_come: Option<crate::model::CostToComeArg>,
-    /// Wall-clock budget in seconds (0: none; the paper's is 300).
-    #[arg(long, default_value_t = 300.0)]
-    pub time_budget_s: f64,
-    /// Diffusion sampler: `ddpm` (the paper's) or `ddim:STEPS`.
-    #[arg(long, default_value = crate::episode::DEFAULT_SAMPLER)]
-    pub sampler: String,
+    /// The search's flags.
+    #[command(flatten)]
+    pub search: crate::search_args::SearchArgs,
     /// Print JSON instead of readable `key: value` lines.
     #[arg(long)]
     pub json: bool,
@@ -93,17 +83,14 @@ pub struct PlanArgs {
 /// screwdriver's α = 1e4, β = 1e3, depth 7; the card's α = 1e5, β = 0, depth 5) with the
 /// flags' changes.
 pub fn search_config(task: Task, args: &PlanArgs) -> anyhow::Result<SearchConfig> {
-    if !(args.time_budget_s.is_finite() && args.time_budget_s >= 0.0) {
-        bail!("--time-budget-s must be a finite number of seconds ≥ 0");
-    }
     let base = SearchConfig::for_task(task);
     let config = SearchConfig {
         k: args.k,
         max_depth: args.depth.unwrap_or(base.max_depth),
-        node_budget: args.node_budget,
-        time_budget_ms: (args.time_budget_s * 1e3).round().min(f64::from(u32::MAX)) as u32,
+        node_budget: args.search.node_budget,
+        time_budget_ms: args.search.time_budget_ms()?,
         seed: args.seed,
-        cost_to_come: args.cost_to_come.map_or(base.cost_to_come, Into::into),
+        cost_to_come: args.search.cost_to_come().unwrap_or(base.cost_to_come),
         ..base
     };
     config
@@ -128,7 +115,7 @@ pub fn run(args: PlanArgs) -> anyhow::Result<()> {
         )
     })?;
     let task = scene.task();
-    let sampler = dips_host::planning::parse_sampler(&args.sampler)?;
+    let sampler = args.search.sampler_config()?;
     let config = search_config(task, &args)?;
 
     let world_state = World::new(scene).state();
@@ -180,7 +167,7 @@ pub fn run(args: PlanArgs) -> anyhow::Result<()> {
         None => {
             let mut session = PaperSession::new(models);
             // A line on stderr every second of a long call (stdout stays the result).
-            let budget = args.time_budget_s;
+            let budget = args.search.time_budget_s;
             let mut tell = |s: f64, reads: u64| {
                 eprintln!(
                     "planning: {s:.0} s, {} expansions started (budget {budget} s)",
@@ -203,7 +190,7 @@ pub fn run(args: PlanArgs) -> anyhow::Result<()> {
         "task": task.name(),
         "seed": args.seed,
         "engine": format!("{:?}", args.engine).to_lowercase(),
-        "sampler": args.sampler,
+        "sampler": args.search.sampler,
         "models": dir.display().to_string(),
         "prior": prior_source,
         "goal": goal,

@@ -1,0 +1,144 @@
+//! The search flags shared by `dips plan`, `dips episode`, `dips eval` and `dips bench plan`:
+//! one declaration, flattened into each command, so the four parse, check and document them
+//! the same way.
+
+use anyhow::bail;
+use clap::{Args, ValueEnum};
+use dips_kernel::diffusion::SamplerConfig;
+use dips_kernel::search::CostToCome;
+
+/// The sampler of `dips episode`, `dips eval`, `dips plan` and `dips bench plan` when none
+/// is given: the paper's ancestral DDPM (posterior noise × 0.5) over 16 strided steps, 16
+/// times fewer denoiser calls than its DDPM-256 (`--sampler ddpm`). On the screwdriver it
+/// planned as well as DDPM-256 where strided DDIM (`ddim:16:1`, the default until
+/// 2026-11-26) did not; deterministic DDIM (η = 0) misplaces the object (`docs/online.md`,
+/// "Sampler").
+pub const DEFAULT_SAMPLER: &str = "ddpm:16";
+
+/// How the search forms the cost-to-come `g` (`--cost-to-come`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum CostToComeArg {
+    /// `g` = the sum of the expected segment costs along the sequence (the paper's equation).
+    Cumulative,
+    /// `g` = the expected cost of the last segment only (the authors' code).
+    LastSegment,
+}
+
+impl From<CostToComeArg> for CostToCome {
+    fn from(c: CostToComeArg) -> Self {
+        match c {
+            CostToComeArg::Cumulative => Self::Cumulative,
+            CostToComeArg::LastSegment => Self::LastSegment,
+        }
+    }
+}
+
+/// The flags that set how a planning call searches, beyond the task's own settings.
+#[derive(Debug, Clone, Args)]
+pub struct SearchArgs {
+    /// Diffusion sampler of the search (and of CSVTO's initialisation in episodes): `ddpm`
+    /// (the paper's 256 steps), `ddpm:STEPS` or `ddim:STEPS[:ETA]`.
+    #[arg(long, default_value = DEFAULT_SAMPLER)]
+    pub sampler: String,
+    /// Wall-clock budget of each planning call in seconds (0: none; the paper's: 300).
+    #[arg(long, default_value_t = 300.0)]
+    pub time_budget_s: f64,
+    /// Most node expansions per planning call (0: the planner's capacity).
+    #[arg(long, default_value_t = 0)]
+    pub node_budget: u32,
+    /// How the search forms the cost-to-come `g`: `cumulative` (the paper's equation) or
+    /// `last-segment` (the authors' code). Default: the task's (`docs/search.md`).
+    #[arg(long, value_enum)]
+    pub cost_to_come: Option<CostToComeArg>,
+}
+
+impl SearchArgs {
+    /// `--sampler` parsed ([`dips_host::planning::parse_sampler`]).
+    pub fn sampler_config(&self) -> anyhow::Result<SamplerConfig> {
+        dips_host::planning::parse_sampler(&self.sampler)
+    }
+
+    /// `--time-budget-s` as checked seconds: finite and not negative.
+    pub fn time_budget_s(&self) -> anyhow::Result<f64> {
+        let s = self.time_budget_s;
+        if !(s.is_finite() && s >= 0.0) {
+            bail!("--time-budget-s {s}: expected a finite number of seconds ≥ 0 (0: no budget)");
+        }
+        Ok(s)
+    }
+
+    /// `--time-budget-s` in the kernel's milliseconds (saturating at `u32::MAX`).
+    pub fn time_budget_ms(&self) -> anyhow::Result<u32> {
+        Ok((self.time_budget_s()? * 1e3)
+            .round()
+            .min(f64::from(u32::MAX)) as u32)
+    }
+
+    /// `--cost-to-come` when given; `None` leaves the task's.
+    pub fn cost_to_come(&self) -> Option<CostToCome> {
+        self.cost_to_come.map(Into::into)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use clap::Parser;
+
+    #[derive(Debug, Parser)]
+    struct Cli {
+        #[command(flatten)]
+        search: SearchArgs,
+    }
+
+    fn parse(extra: &[&str]) -> Result<SearchArgs, clap::Error> {
+        let mut argv = vec!["dips-x"];
+        argv.extend_from_slice(extra);
+        Cli::try_parse_from(argv).map(|c| c.search)
+    }
+
+    #[test]
+    fn defaults_are_the_papers_budget_and_the_fast_sampler() {
+        let a = parse(&[]).unwrap();
+        assert_eq!(a.sampler, DEFAULT_SAMPLER);
+        assert_eq!(a.time_budget_ms().unwrap(), 300_000);
+        assert_eq!(a.node_budget, 0);
+        assert_eq!(a.cost_to_come(), None);
+        assert_eq!(
+            a.sampler_config().unwrap(),
+            dips_host::planning::parse_sampler("ddpm:16").unwrap()
+        );
+    }
+
+    #[test]
+    fn flags_are_parsed_and_bad_values_named() {
+        let a = parse(&[
+            "--sampler",
+            "ddim:8",
+            "--time-budget-s",
+            "0.25",
+            "--node-budget",
+            "7",
+            "--cost-to-come",
+            "last-segment",
+        ])
+        .unwrap();
+        assert_eq!(a.time_budget_ms().unwrap(), 250);
+        assert_eq!(a.node_budget, 7);
+        assert_eq!(a.cost_to_come(), Some(CostToCome::LastSegment));
+        assert!(a.sampler_config().is_ok());
+
+        for bad in ["-1", "inf", "NaN"] {
+            let a = parse(&[&format!("--time-budget-s={bad}")]).unwrap();
+            let e = a.time_budget_ms().unwrap_err().to_string();
+            assert!(e.contains("--time-budget-s"), "{e}");
+        }
+        let e = parse(&["--sampler", "ddim"])
+            .unwrap()
+            .sampler_config()
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("--sampler"), "{e}");
+        assert!(parse(&["--cost-to-come", "sum"]).is_err());
+    }
+}
