@@ -6,8 +6,9 @@
 //! planner does (the default sampler `dips_cli::search_args::DEFAULT_SAMPLER`, the task's
 //! invariant angle) and prints: the executed and the mean diffused change of the task's
 //! progress coordinate (yaw in rad, card y in m), the mean first-step joint jump `‖q₁ − q₀‖`
-//! of the diffused segments (the model's start consistency), and Ψ's mean score and
-//! effective sample size over the 64.
+//! of the diffused segments (the model's start consistency), the share of segments with a
+//! joint more than 0.05 rad outside the Allegro hand's limits after row 0 and the mean of their
+//! largest excess (rad), and Ψ's mean score and effective sample size over the 64.
 //!
 //! ```sh
 //! cargo run --release -p dips-cli --example mode_probe -- \
@@ -78,6 +79,20 @@ fn probe() -> anyhow::Result<()> {
             let world: Vec<f64> = serde_json::from_value(run["start_state"].clone())?;
             let end: Vec<f64> = serde_json::from_value(run["end_state"].clone())?;
             let nq = world.len() - 3;
+            // Each joint's limits, from the result's column names (`q_<finger>_<j>`).
+            let hand = dips_host::kinematics::HandModel::allegro_v4();
+            let limits: Option<Vec<(f32, f32)>> = r["state_columns"].as_array().and_then(|cols| {
+                cols[..nq.min(cols.len())]
+                    .iter()
+                    .map(|c| {
+                        let (finger, j) = c.as_str()?.strip_prefix("q_")?.rsplit_once('_')?;
+                        let finger = dips_host::kinematics::Finger::from_name(finger)?;
+                        let (lo, hi) = hand.joint_limits(finger)[j.parse::<usize>().ok()?.min(3)];
+                        Some((lo as f32, hi as f32))
+                    })
+                    .collect::<Option<Vec<_>>>()
+                    .filter(|l| l.len() == nq)
+            });
             // The world's [q, o] with o's angle as (cos, sin), the models' raw state.
             let state: Vec<f32> = contract_state(&world).iter().map(|&v| v as f32).collect();
             if state.len() != sd {
@@ -109,7 +124,19 @@ fn probe() -> anyhow::Result<()> {
             };
             let mut delta = 0.0;
             let mut jump = 0.0;
+            let (mut outside, mut excess) = (0usize, 0.0f32);
             for seg in out.chunks(td) {
+                if let Some(l) = &limits {
+                    let worst = (1..=h)
+                        .flat_map(|t| (0..nq).map(move |j| (t, j)))
+                        .map(|(t, j)| {
+                            let q = seg[t * d + j];
+                            (l[j].0 - q).max(q - l[j].1).max(0.0)
+                        })
+                        .fold(0.0f32, f32::max);
+                    excess += worst;
+                    outside += usize::from(worst > 0.05);
+                }
                 delta += wrap(pose(&seg[h * d..]) - pose(seg));
                 jump += (0..nq)
                     .map(|j| (seg[d + j] - seg[j]).powi(2))
@@ -131,8 +158,17 @@ fn probe() -> anyhow::Result<()> {
                     .sum::<f32>()
                     .max(f32::MIN_POSITIVE);
             let executed = end[nq + progress] - world[nq + progress];
+            let limits_note = if limits.is_some() {
+                format!(
+                    "; outside the joint limits {}/{SAMPLES} (mean excess {:.3})",
+                    outside,
+                    excess / SAMPLES as f32
+                )
+            } else {
+                String::new()
+            };
             line(&format!(
-                "  {name:22} start {:+.3}: executed {:+.3}, diffused {:+.3}; first-step joint jump {:.3}; Ψ {:.3} (ESS {:.1}/{SAMPLES})",
+                "  {name:22} start {:+.3}: executed {:+.3}, diffused {:+.3}; first-step joint jump {:.3}{limits_note}; Ψ {:.3} (ESS {:.1}/{SAMPLES})",
                 world[nq + progress],
                 executed,
                 delta / SAMPLES as f32,
