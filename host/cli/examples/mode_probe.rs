@@ -8,7 +8,8 @@
 //! progress coordinate (yaw in rad, card y in m), the mean first-step joint jump `‖q₁ − q₀‖`
 //! of the diffused segments (the model's start consistency), the share of segments with a
 //! joint more than 0.05 rad outside the Allegro hand's limits after row 0 and the mean of their
-//! largest excess (rad), and Ψ's mean score and effective sample size over the 64.
+//! largest excess (rad), and Ψ's mean score, its effective sample size over the 64 and its
+//! correlation with the segments' first-step jumps.
 //!
 //! ```sh
 //! cargo run --release -p dips-cli --example mode_probe -- \
@@ -124,6 +125,7 @@ fn probe() -> anyhow::Result<()> {
             };
             let mut delta = 0.0;
             let mut jump = 0.0;
+            let mut jumps = Vec::with_capacity(SAMPLES);
             let (mut outside, mut excess) = (0usize, 0.0f32);
             for seg in out.chunks(td) {
                 if let Some(l) = &limits {
@@ -138,10 +140,12 @@ fn probe() -> anyhow::Result<()> {
                     outside += usize::from(worst > 0.05);
                 }
                 delta += wrap(pose(&seg[h * d..]) - pose(seg));
-                jump += (0..nq)
+                let jmp = (0..nq)
                     .map(|j| (seg[d + j] - seg[j]).powi(2))
                     .sum::<f32>()
                     .sqrt();
+                jump += jmp;
+                jumps.push(jmp);
             }
             let mut x = out.clone();
             normalize_in_place(&models.discriminator.normalization(), &mut x);
@@ -168,15 +172,29 @@ fn probe() -> anyhow::Result<()> {
                 String::new()
             };
             line(&format!(
-                "  {name:22} start {:+.3}: executed {:+.3}, diffused {:+.3}; first-step joint jump {:.3}{limits_note}; Ψ {:.3} (ESS {:.1}/{SAMPLES})",
+                "  {name:22} start {:+.3}: executed {:+.3}, diffused {:+.3}; first-step joint jump {:.3}{limits_note}; Ψ {:.3} (ESS {:.1}/{SAMPLES}, correlation with the jump {:+.2})",
                 world[nq + progress],
                 executed,
                 delta / SAMPLES as f32,
                 jump / SAMPLES as f32,
                 sum / SAMPLES as f32,
-                ess
+                ess,
+                correlation(&jumps, &psi)
             ))?;
         }
     }
     Ok(())
+}
+
+/// Pearson correlation of two equally long samples (NaN when either is constant).
+fn correlation(a: &[f32], b: &[f32]) -> f32 {
+    let n = a.len().min(b.len()) as f32;
+    let (ma, mb) = (a.iter().sum::<f32>() / n, b.iter().sum::<f32>() / n);
+    let (mut sab, mut saa, mut sbb) = (0.0, 0.0, 0.0);
+    for (x, y) in a.iter().zip(b) {
+        sab += (x - ma) * (y - mb);
+        saa += (x - ma) * (x - ma);
+        sbb += (y - mb) * (y - mb);
+    }
+    sab / (saa * sbb).sqrt()
 }
