@@ -11,12 +11,12 @@
 #
 # Environment: DEMOS_SCREWDRIVER (default 40), MARKOV_SCREWDRIVER (default 40: screwdriver
 # demos whose sequences are drawn from the paper's Markov prior, seeds 100 on; docs/datagen.md),
-# DEMOS_CARD (default 48), WORK (default target/models-work: datasets, checkpoints and logs;
+# DEMOS_CARD (default 128), WORK (default target/models-work: datasets, checkpoints and logs;
 # not committed).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 WORK=${WORK:-target/models-work}
-declare -A DEMOS=([screwdriver]=${DEMOS_SCREWDRIVER:-40} [card]=${DEMOS_CARD:-48})
+declare -A DEMOS=([screwdriver]=${DEMOS_SCREWDRIVER:-40} [card]=${DEMOS_CARD:-128})
 mkdir -p "$WORK/logs"
 
 cargo build --release -p dips-cli

@@ -243,7 +243,7 @@ fn search(a: &SearchBenchArgs) -> anyhow::Result<()> {
             reference_yaw: 0.0,
             goal_yaw: -100.0,
         }),
-        Task::Card => Objective::Card(CardObjective { goal_y: -100.0 }),
+        Task::Card => Objective::Card(CardObjective::new(-100.0)),
     };
     measure(a, &spec)
 }
