@@ -112,6 +112,20 @@ impl Method {
     }
 }
 
+/// A planning call's wall-clock budget `seconds` (`--time-budget-s`) checked: finite and not
+/// negative (0: no budget). The one check of the flag for every command and settings file.
+pub fn check_time_budget_s(seconds: f64) -> anyhow::Result<f64> {
+    if !(seconds.is_finite() && seconds >= 0.0) {
+        bail!("--time-budget-s {seconds}: expected a finite number of seconds ≥ 0 (0: no budget)");
+    }
+    Ok(seconds)
+}
+
+/// A budget in seconds as the kernel's `time_budget_ms`, rounded and saturating at `u32::MAX`.
+pub fn time_budget_ms(seconds: f64) -> u32 {
+    (seconds * 1e3).round().min(f64::from(u32::MAX)) as u32
+}
+
 /// Settings of an online episode beside CSVTO's.
 #[derive(Debug, Clone)]
 pub struct OnlineSettings {
@@ -216,9 +230,7 @@ fn search_config(
     let mut c = SearchConfig {
         max_depth: depth,
         node_budget: settings.node_budget,
-        time_budget_ms: (settings.time_budget_s * 1e3)
-            .round()
-            .min(f64::from(u32::MAX)) as u32,
+        time_budget_ms: time_budget_ms(settings.time_budget_s),
         seed,
         cost_to_come: settings.cost_to_come.unwrap_or(base.cost_to_come),
         ..base

@@ -73,6 +73,7 @@ fn probe() -> anyhow::Result<()> {
         let h = dims.horizon - 1;
         let layout = task.layout();
         let progress = if task == Task::Screwdriver { 2 } else { 1 };
+        let limits = joint_limits(&r);
         line(&format!("{}:", file.display()))?;
         for run in r["mode_runs"].as_array().context("no mode_runs")? {
             let name = run["mode"].as_str().context("mode")?;
@@ -80,20 +81,7 @@ fn probe() -> anyhow::Result<()> {
             let world: Vec<f64> = serde_json::from_value(run["start_state"].clone())?;
             let end: Vec<f64> = serde_json::from_value(run["end_state"].clone())?;
             let nq = world.len() - 3;
-            // Each joint's limits, from the result's column names (`q_<finger>_<j>`).
-            let hand = dips_host::kinematics::HandModel::allegro_v4();
-            let limits: Option<Vec<(f32, f32)>> = r["state_columns"].as_array().and_then(|cols| {
-                cols[..nq.min(cols.len())]
-                    .iter()
-                    .map(|c| {
-                        let (finger, j) = c.as_str()?.strip_prefix("q_")?.rsplit_once('_')?;
-                        let finger = dips_host::kinematics::Finger::from_name(finger)?;
-                        let (lo, hi) = hand.joint_limits(finger)[j.parse::<usize>().ok()?.min(3)];
-                        Some((lo as f32, hi as f32))
-                    })
-                    .collect::<Option<Vec<_>>>()
-                    .filter(|l| l.len() == nq)
-            });
+            let limits = limits.as_deref().filter(|l| l.len() == nq);
             // The world's [q, o] with o's angle as (cos, sin), the models' raw state.
             let state: Vec<f32> = contract_state(&world).iter().map(|&v| v as f32).collect();
             if state.len() != sd {
@@ -128,7 +116,7 @@ fn probe() -> anyhow::Result<()> {
             let mut jumps = Vec::with_capacity(SAMPLES);
             let (mut outside, mut excess) = (0usize, 0.0f32);
             for seg in out.chunks(td) {
-                if let Some(l) = &limits {
+                if let Some(l) = limits {
                     let worst = (1..=h)
                         .flat_map(|t| (0..nq).map(move |j| (t, j)))
                         .map(|(t, j)| {
@@ -184,6 +172,23 @@ fn probe() -> anyhow::Result<()> {
         }
     }
     Ok(())
+}
+
+/// Each joint's `(lower, upper)` limits on the Allegro hand, in the order of the result's
+/// `q_<finger>_<j>` state columns; `None` when a column does not name a joint of the hand.
+fn joint_limits(r: &serde_json::Value) -> Option<Vec<(f32, f32)>> {
+    let hand = dips_host::kinematics::HandModel::allegro_v4();
+    r["state_columns"]
+        .as_array()?
+        .iter()
+        .filter_map(|c| c.as_str()?.strip_prefix("q_"))
+        .map(|c| {
+            let (finger, j) = c.rsplit_once('_')?;
+            let finger = dips_host::kinematics::Finger::from_name(finger)?;
+            let (lo, hi) = *hand.joint_limits(finger).get(j.parse::<usize>().ok()?)?;
+            Some((lo as f32, hi as f32))
+        })
+        .collect()
 }
 
 /// Pearson correlation of two equally long samples (NaN when either is constant).

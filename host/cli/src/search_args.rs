@@ -2,7 +2,6 @@
 //! one declaration, flattened into each command, so the four parse, check and document them
 //! the same way.
 
-use anyhow::bail;
 use clap::{Args, ValueEnum};
 use dips_kernel::diffusion::SamplerConfig;
 use dips_kernel::search::CostToCome;
@@ -58,20 +57,15 @@ impl SearchArgs {
         dips_host::planning::parse_sampler(&self.sampler)
     }
 
-    /// `--time-budget-s` as checked seconds: finite and not negative.
+    /// `--time-budget-s` as checked seconds ([`dips_host::online::check_time_budget_s`]).
     pub fn time_budget_s(&self) -> anyhow::Result<f64> {
-        let s = self.time_budget_s;
-        if !(s.is_finite() && s >= 0.0) {
-            bail!("--time-budget-s {s}: expected a finite number of seconds ≥ 0 (0: no budget)");
-        }
-        Ok(s)
+        dips_host::online::check_time_budget_s(self.time_budget_s)
     }
 
-    /// `--time-budget-s` in the kernel's milliseconds (saturating at `u32::MAX`).
+    /// `--time-budget-s` checked, in the kernel's milliseconds
+    /// ([`dips_host::online::time_budget_ms`]).
     pub fn time_budget_ms(&self) -> anyhow::Result<u32> {
-        Ok((self.time_budget_s()? * 1e3)
-            .round()
-            .min(f64::from(u32::MAX)) as u32)
+        Ok(dips_host::online::time_budget_ms(self.time_budget_s()?))
     }
 
     /// `--cost-to-come` when given; `None` leaves the task's.

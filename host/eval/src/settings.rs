@@ -4,7 +4,7 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{Context, bail};
 use dips_datagen::Shard;
-use dips_host::online::{Method, OnlineSettings};
+use dips_host::online::{Method, OnlineSettings, check_time_budget_s};
 use dips_host::planning::parse_sampler;
 use dips_host::scenes::SceneKind;
 use dips_kernel::search::{CostToCome, SearchConfig};
@@ -101,9 +101,7 @@ impl EvalSettings {
         if self.first_seed.checked_add(self.trials as u64).is_none() {
             bail!("--first-seed + --trials overflows the seed range");
         }
-        if !(self.online.time_budget_s.is_finite() && self.online.time_budget_s >= 0.0) {
-            bail!("--time-budget-s must be a finite number of seconds ≥ 0");
-        }
+        check_time_budget_s(self.online.time_budget_s)?;
         if self.online.max_modes == Some(0) {
             bail!("--max-modes must be at least 1");
         }
