@@ -34,7 +34,9 @@ pub struct DatagenArgs {
     /// Where the demos' contact sequences come from: `pattern` (the paper's data: screwdriver
     /// turn, then both regrasps in random order, repeated; card uniform) or `markov` (chains
     /// drawn from the paper's Markov prior p(C), which hold every transition a plan can
-    /// choose). Use new seeds (`--first-seed`) when adding markov demos to a pattern dataset.
+    /// choose) or `turn-runs` (screwdriver runs of 2–5 turns separated by one or both
+    /// regrasps, as the planner executes them). Use new seeds (`--first-seed`) when adding
+    /// demos of another source to a dataset.
     #[arg(long, default_value = "pattern")]
     pub sequences: String,
     /// Demos run at once (default: the number of cores).
@@ -87,8 +89,9 @@ pub fn run(args: DatagenArgs) -> anyhow::Result<()> {
     settings.sequences = dips_host::execute::SequenceSource::from_name(&args.sequences)
         .with_context(|| {
             format!(
-                "unknown --sequences {:?}; available: pattern, markov",
-                args.sequences
+                "unknown --sequences {:?}; available: {}",
+                args.sequences,
+                dips_host::execute::SequenceSource::NAMES
             )
         })?;
     settings.shard = args.shard;

@@ -60,6 +60,16 @@ fn bad(path: &Path, reason: impl Into<String>) -> DatasetError {
 impl PriorFile {
     /// Fit from every demo's executed mode sequence and floor at `p_min`.
     pub fn fit(ds: &Dataset, p_min: f32) -> Result<Self> {
+        Self::fit_where(ds, p_min, |_| true)
+    }
+
+    /// Fit from the executed mode sequences of the demos `keep` accepts (e.g. those of some
+    /// sequence sources only) and floor at `p_min`; an error when it accepts none.
+    pub fn fit_where(
+        ds: &Dataset,
+        p_min: f32,
+        keep: impl Fn(&crate::DemoRecord) -> bool,
+    ) -> Result<Self> {
         let task = ds.task;
         let n = task.mode_count();
         let mut sequences = Vec::with_capacity(ds.demos.len());
@@ -67,7 +77,7 @@ impl PriorFile {
             start: vec![0; n],
             transitions: vec![vec![0; n]; n],
         };
-        for demo in &ds.demos {
+        for demo in ds.demos.iter().filter(|d| keep(d)) {
             let mut seq = Vec::with_capacity(demo.modes.len());
             for name in &demo.modes {
                 let id = task.mode_by_name(name).map_err(|_| {
@@ -85,6 +95,15 @@ impl PriorFile {
                 seq.push(id);
             }
             sequences.push(seq);
+        }
+        if sequences.is_empty() {
+            return Err(bad(
+                Path::new("prior"),
+                format!(
+                    "no demo of the {} demos was chosen to fit the prior from",
+                    ds.demos.len()
+                ),
+            ));
         }
         let prior = MarkovPrior::fit_with_floor(n, &sequences, p_min)
             .map_err(|e| bad(Path::new("prior"), format!("cannot fit the prior: {e}")))?;
@@ -240,6 +259,14 @@ mod tests {
         );
         // A mode never left (both) has a uniform row.
         assert!(f.transitions[2].iter().all(|&p| (p - 0.25).abs() < 1e-6));
+
+        // Fitting from some demos only counts only theirs; choosing none is an error.
+        let odd = PriorFile::fit_where(&ds, 0.1, |d| d.seed % 2 == 1).unwrap();
+        assert_eq!(odd.sequences, 2);
+        assert_eq!(odd.counts.start, [1, 1, 0, 0]);
+        assert_eq!(odd.counts.transitions[0], [0, 0, 0, 1]);
+        let e = PriorFile::fit_where(&ds, 0.1, |_| false).unwrap_err();
+        assert!(e.to_string().contains("no demo of the 3 demos"), "{e}");
 
         let dir = std::env::temp_dir().join(format!("dips-prior-{}", std::process::id()));
         std::fs::create_dir_all(&dir).unwrap();

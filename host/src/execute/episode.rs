@@ -63,6 +63,10 @@ pub enum SequenceSource {
     /// p(turn) = 0.8 first, the same mode again 0.1, each other 0.45; card uniform), the
     /// prior the search plans with, so the demos hold every transition a plan can choose.
     Markov,
+    /// Runs of consecutive turns, as the planner executes them ([`sample_turn_run_sequence`]):
+    /// the screwdriver's turn runs of 2–5 separated by one or both regrasps, so the demos hold
+    /// late turns after turns, the ones that turn short or tip; card uniform.
+    TurnRuns,
 }
 
 impl SequenceSource {
@@ -71,6 +75,7 @@ impl SequenceSource {
         match name {
             "pattern" => Some(Self::Pattern),
             "markov" => Some(Self::Markov),
+            "turn-runs" => Some(Self::TurnRuns),
             _ => None,
         }
     }
@@ -80,8 +85,46 @@ impl SequenceSource {
         match self {
             Self::Pattern => "pattern",
             Self::Markov => "markov",
+            Self::TurnRuns => "turn-runs",
         }
     }
+
+    /// Every name [`Self::from_name`] reads, for error messages.
+    pub const NAMES: &'static str = "pattern, markov, turn-runs";
+}
+
+/// Shortest and longest run of consecutive screwdriver turns in a
+/// [`SequenceSource::TurnRuns`] sequence.
+pub const TURN_RUN_LENGTHS: (u32, u32) = (2, 5);
+
+/// Draw a sequence of runs of consecutive turns (7 screwdriver modes): a run of
+/// [`TURN_RUN_LENGTHS`] turns (uniform), then a break of one regrasp (either finger group) or
+/// both in random order (each break kind with probability 1/2), repeated. The planner executes
+/// such runs (its plans hold up to seven turns in a row), while the paper's pattern never
+/// holds two turns in a row and its Markov prior repeats a mode with probability 0.1, so late
+/// turns after turns, which turn short or tip the screwdriver, are rare in both. The card's
+/// modes are uniform, as in the other sources.
+pub fn sample_turn_run_sequence(task: SceneKind, rng: &mut KernelRng) -> Vec<Mode> {
+    let SceneKind::Screwdriver = task else {
+        return sample_prior_sequence(task, rng);
+    };
+    let (lo, hi) = TURN_RUN_LENGTHS;
+    let mut seq = Vec::with_capacity(SCREWDRIVER_MODES);
+    while seq.len() < SCREWDRIVER_MODES {
+        let run = lo + rng.below(hi - lo + 1);
+        seq.extend(std::iter::repeat_n(Mode::Turn, run as usize));
+        let mut regrasps = if rng.below(2) == 0 {
+            vec![Mode::IndexRegrasp, Mode::ThumbMiddleRegrasp]
+        } else {
+            vec![Mode::ThumbMiddleRegrasp, Mode::IndexRegrasp]
+        };
+        if rng.below(2) == 0 {
+            regrasps.truncate(1);
+        }
+        seq.extend(regrasps);
+    }
+    seq.truncate(SCREWDRIVER_MODES);
+    seq
 }
 
 /// Draw a sequence of the task's length (7 screwdriver, 5 card modes) from the paper's Markov
@@ -120,6 +163,7 @@ pub fn sequence_for_seed(task: SceneKind, seed: u64, source: SequenceSource) -> 
     match source {
         SequenceSource::Pattern => sample_prior_sequence(task, &mut rng),
         SequenceSource::Markov => sample_markov_sequence(task, &mut rng),
+        SequenceSource::TurnRuns => sample_turn_run_sequence(task, &mut rng),
     }
 }
 
@@ -416,5 +460,60 @@ mod tests {
                 prior_sequence_for_seed(SceneKind::Screwdriver, seed)
             );
         }
+    }
+
+    /// Turn-run sequences start with two to five turns, break them with one or two distinct
+    /// regrasps, never repeat a regrasp, and hold a turn right after a turn late in the
+    /// episode (modes 4–6) in most demos; every run length and both break kinds occur.
+    #[test]
+    fn turn_run_sequences_hold_late_turns_after_turns() {
+        let n = 2000u64;
+        let (mut late_turn_after_turn, mut run_lengths, mut breaks) = (0, [0usize; 8], [0usize; 3]);
+        for seed in 0..n {
+            let s = sequence_for_seed(SceneKind::Screwdriver, seed, SequenceSource::TurnRuns);
+            assert_eq!(s.len(), SCREWDRIVER_MODES);
+            assert!(s[0] == Mode::Turn && s[1] == Mode::Turn, "{s:?}");
+            assert!(
+                s.windows(2).all(|w| w[0] == Mode::Turn || w[0] != w[1]),
+                "a regrasp repeated: {s:?}"
+            );
+            late_turn_after_turn += usize::from(
+                (4..SCREWDRIVER_MODES).any(|i| s[i] == Mode::Turn && s[i - 1] == Mode::Turn),
+            );
+            // Whole runs and breaks (the last of each may be cut at the 7th mode).
+            let mut i = 0;
+            while i < s.len() {
+                let turn = s[i] == Mode::Turn;
+                let j = (i..s.len())
+                    .find(|&j| (s[j] == Mode::Turn) != turn)
+                    .unwrap_or(s.len());
+                let len = j - i;
+                if j < s.len() {
+                    if turn {
+                        run_lengths[len] += 1;
+                    } else {
+                        breaks[len] += 1;
+                    }
+                }
+                i = j;
+            }
+        }
+        let (lo, hi) = TURN_RUN_LENGTHS;
+        assert!(run_lengths[..lo as usize].iter().all(|&c| c == 0));
+        assert!(
+            run_lengths[lo as usize..=hi as usize]
+                .iter()
+                .all(|&c| c > 0)
+        );
+        assert!(run_lengths[hi as usize + 1..].iter().all(|&c| c == 0));
+        assert!(breaks[1] > 0 && breaks[2] > 0 && breaks[0] == 0);
+        assert!(
+            late_turn_after_turn as f64 / n as f64 > 0.5,
+            "late turn after turn in {late_turn_after_turn} of {n}"
+        );
+        assert_eq!(
+            SequenceSource::from_name(SequenceSource::TurnRuns.name()),
+            Some(SequenceSource::TurnRuns)
+        );
     }
 }

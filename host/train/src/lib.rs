@@ -164,7 +164,14 @@ pub fn run(
     settings.validate()?;
     let ds = dips_dataset::read_dir(data_dir, task)?;
     std::fs::create_dir_all(out_dir).map_err(io_err(out_dir))?;
-    let prior = dips_dataset::PriorFile::fit(&ds, PRIOR_P_MIN)?;
+    let prior = match &settings.prior_sources {
+        None => dips_dataset::PriorFile::fit(&ds, PRIOR_P_MIN)?,
+        Some(sources) => dips_dataset::PriorFile::fit_where(&ds, PRIOR_P_MIN, |d| {
+            sources
+                .iter()
+                .any(|s| s == settings::demo_sequence_source(d))
+        })?,
+    };
     prior.save(&out_dir.join(PRIOR_FILE))?;
     let den = train_denoiser(&ds, settings, out_dir, opts)?;
     export_denoiser(&den, &out_dir.join(DENOISER_FILE))?;

@@ -162,6 +162,23 @@ pub struct TrainSettings {
     pub denoiser: DenoiserSettings,
     /// The discriminator's training.
     pub discriminator: DiscriminatorSettings,
+    /// The sequence sources (a demo's `sequences` metadata: `pattern`, `markov`,
+    /// `turn-runs`; a demo without it counts as `pattern`) whose demos the contact-mode prior
+    /// is fitted from. Absent: every demo. The models always learn from every demo; this keeps
+    /// demos drawn to teach the models rare transitions from also making the planner's prior
+    /// favour them.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub prior_sources: Option<Vec<String>>,
+}
+
+/// The sequence-source names [`TrainSettings::prior_sources`] accepts.
+pub const SEQUENCE_SOURCES: [&str; 3] = ["pattern", "markov", "turn-runs"];
+
+/// A demo's sequence source, from its `sequences` metadata (`pattern` when absent).
+pub fn demo_sequence_source(demo: &dips_dataset::DemoRecord) -> &str {
+    demo.metadata
+        .get("sequences")
+        .map_or("pattern", String::as_str)
 }
 
 impl Default for TrainSettings {
@@ -175,6 +192,7 @@ impl Default for TrainSettings {
             net: NetSettings::default(),
             denoiser: DenoiserSettings::default(),
             discriminator: DiscriminatorSettings::default(),
+            prior_sources: None,
         }
     }
 }
@@ -228,6 +246,26 @@ impl TrainSettings {
     /// Check every setting; the error names the field.
     pub fn validate(&self) -> Result<()> {
         self.net.validate()?;
+        if let Some(sources) = &self.prior_sources {
+            if sources.is_empty() {
+                return Err(bad(
+                    "prior_sources",
+                    "must name at least one source (or be left out: every demo)",
+                ));
+            }
+            if let Some(s) = sources
+                .iter()
+                .find(|s| !SEQUENCE_SOURCES.contains(&s.as_str()))
+            {
+                return Err(bad(
+                    "prior_sources",
+                    format!(
+                        "unknown source {s:?}; allowed: {}",
+                        SEQUENCE_SOURCES.join(", ")
+                    ),
+                ));
+            }
+        }
         let d = &self.denoiser;
         if !(2..=100_000).contains(&d.diffusion_steps) {
             return Err(bad("denoiser.diffusion_steps", "must be in 2..=100000"));

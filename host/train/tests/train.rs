@@ -210,6 +210,18 @@ fn bad_settings_and_bad_files_are_typed_errors() {
         ..TrainSettings::default()
     };
     assert!(matches!(s.validate(), Err(TrainError::Settings { .. })));
+    for (sources, said) in [(vec![], "at least one"), (vec!["dagger"], "\"dagger\"")] {
+        let s = TrainSettings {
+            prior_sources: Some(sources.into_iter().map(String::from).collect()),
+            ..TrainSettings::default()
+        };
+        let e = s.validate().unwrap_err();
+        assert!(
+            matches!(&e, TrainError::Settings { field, .. } if field == "prior_sources")
+                && e.to_string().contains(said),
+            "{e}"
+        );
+    }
 
     let dir = tmp("bad");
     let e = dips_train::run(
@@ -242,6 +254,22 @@ fn run_writes_the_model_directory() {
     s.denoiser.steps = 10;
     s.discriminator.steps = 5;
     let out = dir.join("models");
+    // The prior is fitted from the chosen sources' demos only: these demos carry no source
+    // (pattern), so a markov-only prior has nothing to fit and says so before training.
+    let markov_only = TrainSettings {
+        prior_sources: Some(vec!["markov".to_string()]),
+        ..s.clone()
+    };
+    let e = dips_train::run(
+        Task::Card,
+        &dir.join("data"),
+        &out,
+        &markov_only,
+        &RunOptions::default(),
+    )
+    .unwrap_err();
+    assert!(e.to_string().contains("no demo of the 5 demos"), "{e}");
+    s.prior_sources = Some(vec!["pattern".to_string(), "markov".to_string()]);
     let r = dips_train::run(
         Task::Card,
         &dir.join("data"),
@@ -251,6 +279,7 @@ fn run_writes_the_model_directory() {
     )
     .unwrap();
     assert_eq!(r.demos, 5);
+    assert_eq!(r.prior.sequences, 5);
     for f in ["denoiser.onnx", "discriminator.onnx", "train_report.json"] {
         assert!(out.join(f).is_file(), "{f}");
     }
