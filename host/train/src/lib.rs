@@ -57,8 +57,11 @@ pub struct TrainReport {
     pub data_dir: PathBuf,
     /// Demos and trajectories read.
     pub demos: usize,
-    /// Trajectories read.
+    /// Trajectories trained on.
     pub samples: usize,
+    /// Trajectories left out because their mode followed the object's fall
+    /// ([`TrainSettings::drop_modes_after_invalid`]).
+    pub dropped_after_invalid: usize,
     /// Seeds of the held-out demos.
     pub held_out_seeds: Vec<u64>,
     /// The settings.
@@ -88,6 +91,9 @@ pub struct PolicyReport {
     pub demos: usize,
     /// Training windows over all demos.
     pub windows: usize,
+    /// Trajectories left out because their mode followed the object's fall
+    /// ([`TrainSettings::drop_modes_after_invalid`]).
+    pub dropped_after_invalid: usize,
     /// Seeds of the held-out demos.
     pub held_out_seeds: Vec<u64>,
     /// The settings.
@@ -115,7 +121,7 @@ pub fn run_policy(
     let mut settings = settings.clone();
     settings.denoiser.policy = true;
     settings.validate()?;
-    let ds = dips_dataset::read_dir(data_dir, task)?;
+    let (ds, dropped_after_invalid) = read_dataset(task, data_dir, &settings)?;
     std::fs::create_dir_all(out_dir).map_err(io_err(out_dir))?;
     let den = train_denoiser(&ds, &settings, out_dir, opts)?;
     export_denoiser(&den, &out_dir.join(DENOISER_FILE))?;
@@ -126,6 +132,7 @@ pub fn run_policy(
         data_dir: data_dir.to_path_buf(),
         demos: ds.demos.len(),
         windows: ds.demos.iter().map(|d| data::policy_windows(d).1).sum(),
+        dropped_after_invalid,
         held_out_seeds: split.held_out.iter().map(|&i| ds.demos[i].seed).collect(),
         settings: settings.clone(),
         denoiser: den.report.clone(),
@@ -151,6 +158,25 @@ pub fn export_discriminator(d: &TrainedDiscriminator, path: &Path) -> Result<dip
     export::write_model(path, &d.onnx()?)
 }
 
+/// Read the dataset in `data_dir` as `settings` ask (the modes after an object's fall left
+/// out when [`TrainSettings::drop_modes_after_invalid`]); also the trajectories left out.
+fn read_dataset(
+    task: Task,
+    data_dir: &Path,
+    settings: &TrainSettings,
+) -> Result<(dips_dataset::Dataset, usize)> {
+    let mut ds = dips_dataset::read_dir(data_dir, task)?;
+    let dropped = if settings.drop_modes_after_invalid {
+        ds.demos
+            .iter_mut()
+            .map(data::drop_modes_after_invalid)
+            .sum()
+    } else {
+        0
+    };
+    Ok((ds, dropped))
+}
+
 /// Read the dataset in `data_dir`, fit the contact-mode prior, train both models, and write
 /// `prior.json`, `denoiser.onnx`, `discriminator.onnx` and `train_report.json` into `out_dir` (checkpoints under
 /// `out_dir/checkpoints/`; a killed run resumes from them).
@@ -162,7 +188,7 @@ pub fn run(
     opts: &RunOptions,
 ) -> Result<TrainReport> {
     settings.validate()?;
-    let ds = dips_dataset::read_dir(data_dir, task)?;
+    let (ds, dropped_after_invalid) = read_dataset(task, data_dir, settings)?;
     std::fs::create_dir_all(out_dir).map_err(io_err(out_dir))?;
     let prior = match &settings.prior_sources {
         None => dips_dataset::PriorFile::fit(&ds, PRIOR_P_MIN)?,
@@ -183,6 +209,7 @@ pub fn run(
         data_dir: data_dir.to_path_buf(),
         demos: ds.demos.len(),
         samples: ds.samples(),
+        dropped_after_invalid,
         held_out_seeds: split.held_out.iter().map(|&i| ds.demos[i].seed).collect(),
         settings: settings.clone(),
         denoiser: den.report.clone(),

@@ -169,6 +169,11 @@ pub struct TrainSettings {
     /// favour them.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub prior_sources: Option<Vec<String>>,
+    /// Leave out the trajectories of the modes after a demo's first invalid mode (the object
+    /// already fell: states the planner never plans from); the mode in which it fell is kept.
+    /// Default false (every trajectory).
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub drop_modes_after_invalid: bool,
 }
 
 /// The sequence-source names [`TrainSettings::prior_sources`] accepts.
@@ -193,6 +198,7 @@ impl Default for TrainSettings {
             denoiser: DenoiserSettings::default(),
             discriminator: DiscriminatorSettings::default(),
             prior_sources: None,
+            drop_modes_after_invalid: false,
         }
     }
 }
