@@ -94,6 +94,9 @@ pub fn run_quality(args: QualityArgs) -> anyhow::Result<()> {
         open_loop_trials: args.trials,
         seed: args.seed,
         engine: args.engine.into(),
+        drop_modes_after_invalid: report["settings"]["drop_modes_after_invalid"]
+            .as_bool()
+            .unwrap_or(false),
     };
     let q = measure(scene, &dir, &args.data, &seeds, &opts, |what| {
         eprintln!("dips model quality: {what}");

@@ -38,6 +38,9 @@ pub struct QualityOptions {
     pub seed: u64,
     /// Engine that runs the denoiser.
     pub engine: EngineKind,
+    /// Leave out the held-out modes after an object's fall, as the models' training did
+    /// (`drop_modes_after_invalid` of their settings).
+    pub drop_modes_after_invalid: bool,
 }
 
 impl Default for QualityOptions {
@@ -48,6 +51,7 @@ impl Default for QualityOptions {
             open_loop_trials: 10,
             seed: 0,
             engine: EngineKind::Kernel,
+            drop_modes_after_invalid: false,
         }
     }
 }
@@ -421,7 +425,12 @@ pub fn measure(
     mut progress: impl FnMut(&str),
 ) -> anyhow::Result<QualityReport> {
     let task = scene.task();
-    let ds = dips_dataset::read_dir(data_dir, task)?;
+    let mut ds = dips_dataset::read_dir(data_dir, task)?;
+    if opts.drop_modes_after_invalid {
+        for d in &mut ds.demos {
+            d.drop_modes_after_invalid();
+        }
+    }
     if held_out_seeds.is_empty() {
         bail!(
             "no held-out demo seeds: quality is measured on demos the models were not trained on"

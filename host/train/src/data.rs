@@ -1,7 +1,7 @@
 //! Training data in memory: the flat sample table, z-score normalisation, the screwdriver's
 //! yaw augmentation, the random inpainting masks and the forward-noised batches.
 
-use dips_dataset::{Dataset, DemoRecord, mix64};
+use dips_dataset::{Dataset, mix64};
 use dips_kernel::mode::{SegmentDims, Task};
 use dips_kernel::rng::KernelRng;
 
@@ -85,51 +85,6 @@ pub fn policy_windows(demo: &dips_dataset::DemoRecord) -> (Vec<f32>, usize) {
         }
     }
     (out, l)
-}
-
-/// The index of a demo's first mode that did not stay valid (the object fell or left the
-/// task's bounds in it), from the `outcome` metadata `dips datagen` writes (each mode's
-/// `valid`); `None` when every mode stayed valid or the demo carries no such record.
-pub fn first_invalid_mode(demo: &DemoRecord) -> Option<usize> {
-    let outcome: serde_json::Value = serde_json::from_str(demo.metadata.get("outcome")?).ok()?;
-    outcome
-        .get("modes")?
-        .as_array()?
-        .iter()
-        .position(|m| m.get("valid").and_then(serde_json::Value::as_bool) == Some(false))
-}
-
-/// Drop the trajectories of the modes after a demo's first invalid mode
-/// ([`first_invalid_mode`]; the mode in which the object fell is kept): they start from an
-/// object already fallen, a state the planner never plans from, and would widen the
-/// normalisation of the object's columns (a fallen screwdriver's roll reaches π). Returns the
-/// number of trajectories dropped.
-pub fn drop_modes_after_invalid(demo: &mut DemoRecord) -> usize {
-    let Some(last) = first_invalid_mode(demo) else {
-        return 0;
-    };
-    let keep: Vec<bool> = demo.mode_index.iter().map(|&m| m <= last as i64).collect();
-    let dropped = keep.iter().filter(|k| !**k).count();
-    if dropped == 0 {
-        return 0;
-    }
-    let (floats, fingers) = (demo.task.dims().floats(), demo.task.dims().fingers);
-    fn retain<T: Copy>(v: &mut Vec<T>, keep: &[bool], width: usize) {
-        let old = std::mem::take(v);
-        v.extend(
-            old.chunks(width)
-                .zip(keep)
-                .filter(|(_, k)| **k)
-                .flat_map(|(c, _)| c.iter().copied()),
-        );
-    }
-    retain(&mut demo.trajectories, &keep, floats);
-    retain(&mut demo.contexts, &keep, fingers);
-    retain(&mut demo.mode_index, &keep, 1);
-    retain(&mut demo.step, &keep, 1);
-    retain(&mut demo.particle, &keep, 1);
-    demo.modes.truncate(last + 1);
-    dropped
 }
 
 impl Samples {
@@ -444,72 +399,5 @@ mod policy_tests {
         assert!(w3_row1[dims.state_dim..].iter().all(|&v| v == 0.0));
         // Window 3 starts at the last executed row.
         assert_eq!(first_col(3, 0), 1101.0);
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use std::collections::BTreeMap;
-
-    use super::*;
-
-    /// A card demo of three modes, two trajectories each, whose trajectories hold their index.
-    fn demo(outcome: Option<&str>) -> DemoRecord {
-        let task = Task::Card;
-        let dims = task.dims();
-        let n = 6;
-        let modes = ["index", "middle", "both"];
-        let mut contexts = Vec::new();
-        for i in 0..n {
-            let id = task.mode_by_name(modes[i / 2]).unwrap();
-            let mut c = [0.0f32; 2];
-            task.modes()[id.index()].mode.write_signs(&mut c);
-            contexts.extend_from_slice(&c);
-        }
-        let mut metadata = BTreeMap::new();
-        if let Some(o) = outcome {
-            metadata.insert("outcome".to_string(), o.to_string());
-        }
-        DemoRecord {
-            task,
-            seed: 1,
-            modes: modes.iter().map(|m| m.to_string()).collect(),
-            trajectories: (0..n)
-                .flat_map(|i| std::iter::repeat_n(i as f32, dims.floats()))
-                .collect(),
-            contexts,
-            mode_index: vec![0, 0, 1, 1, 2, 2],
-            step: vec![0, 1, 0, 1, 0, 1],
-            particle: vec![0; n],
-            metadata,
-        }
-    }
-
-    /// The modes after the first invalid one are dropped with every per-trajectory array;
-    /// the mode in which the object fell is kept; demos without a record or without an
-    /// invalid mode are untouched.
-    #[test]
-    fn modes_after_the_fall_are_dropped() {
-        let fell = r#"{"valid":false,"modes":[{"valid":true},{"valid":false},{"valid":true}]}"#;
-        let mut d = demo(Some(fell));
-        assert_eq!(first_invalid_mode(&d), Some(1));
-        assert_eq!(drop_modes_after_invalid(&mut d), 2);
-        let dims = d.task.dims();
-        assert_eq!(d.len(), 4);
-        assert_eq!(d.mode_index, [0, 0, 1, 1]);
-        assert_eq!(d.step, [0, 1, 0, 1]);
-        assert_eq!(d.modes, ["index", "middle"]);
-        assert_eq!(d.trajectories.len(), 4 * dims.floats());
-        assert_eq!(d.trajectories[3 * dims.floats()], 3.0);
-        assert_eq!(d.contexts.len(), 4 * dims.fingers);
-        d.check().unwrap();
-
-        let fine = r#"{"valid":true,"modes":[{"valid":true},{"valid":true},{"valid":true}]}"#;
-        for outcome in [Some(fine), None, Some("not json")] {
-            let mut d = demo(outcome);
-            assert_eq!(first_invalid_mode(&d), None);
-            assert_eq!(drop_modes_after_invalid(&mut d), 0);
-            assert_eq!(d.len(), 6);
-        }
     }
 }

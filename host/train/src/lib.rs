@@ -169,7 +169,7 @@ fn read_dataset(
     let dropped = if settings.drop_modes_after_invalid {
         ds.demos
             .iter_mut()
-            .map(data::drop_modes_after_invalid)
+            .map(dips_dataset::DemoRecord::drop_modes_after_invalid)
             .sum()
     } else {
         0
