@@ -252,11 +252,11 @@ pub fn batch_indices(
 }
 
 /// Draw the inpainting mask of one trajectory (spec §4.3): `true` = given (clean, not in the
-/// loss). Row 0 given w.p. 0.5, the last row w.p. 0.5, every row also w.p. 0.25; if every
-/// row ends up given, one random row is un-given.
-pub fn draw_mask(rows: usize, rng: &mut KernelRng) -> Vec<bool> {
+/// loss). Row 0 given w.p. `start_given` (the spec's 0.5), the last row w.p. 0.5, every row
+/// also w.p. 0.25; if every row ends up given, one random row is un-given.
+pub fn draw_mask(rows: usize, start_given: f32, rng: &mut KernelRng) -> Vec<bool> {
     let mut m = vec![false; rows];
-    m[0] = rng.uniform_f32() < 0.5;
+    m[0] = rng.uniform_f32() < start_given;
     m[rows - 1] |= rng.uniform_f32() < 0.5;
     for v in m.iter_mut() {
         *v |= rng.uniform_f32() < 0.25;
@@ -292,6 +292,7 @@ pub fn noise_batch(
     dims: SegmentDims,
     alpha_bar: &[f32],
     dropout: f32,
+    start_given: f32,
     rng: &mut KernelRng,
 ) -> NoisedBatch {
     let (td, d) = (dims.floats(), dims.dim());
@@ -309,7 +310,7 @@ pub fn noise_batch(
         } else {
             1.0
         };
-        let mask = draw_mask(dims.horizon, rng);
+        let mask = draw_mask(dims.horizon, start_given, rng);
         let (sa, sb) = (alpha_bar[ti].sqrt(), (1.0 - alpha_bar[ti]).sqrt());
         for (r, &given) in mask.iter().enumerate() {
             for c in 0..d {

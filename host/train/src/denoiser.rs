@@ -193,7 +193,15 @@ fn eval_set(
     let mut x0 = s.x;
     norm.normalize(&mut x0);
     let mut rng = stream(settings.seed, purpose::EVAL, 0);
-    let batch = noise_batch(&x0, s.context, dims, alpha_bar, 0.0, &mut rng);
+    let batch = noise_batch(
+        &x0,
+        s.context,
+        dims,
+        alpha_bar,
+        0.0,
+        settings.denoiser.start_given,
+        &mut rng,
+    );
     Some(EvalSet { batch, n: s.n })
 }
 
@@ -319,7 +327,15 @@ pub fn train_denoiser(
             }
         }
         norm.normalize(&mut x0);
-        let mut nb = noise_batch(&x0, ctx, dims, &alpha_bar, s.context_dropout, &mut rng);
+        let mut nb = noise_batch(
+            &x0,
+            ctx,
+            dims,
+            &alpha_bar,
+            s.context_dropout,
+            s.start_given,
+            &mut rng,
+        );
         if s.object_loss_weight != 1.0 {
             for row in nb.weight.chunks_exact_mut(d) {
                 for w in &mut row[object_cols.clone()] {

@@ -62,11 +62,19 @@ pub struct DenoiserSettings {
     /// motion poorly (`docs/training.md`).
     #[serde(default = "default_object_loss_weight")]
     pub object_loss_weight: f32,
+    /// Probability that a training trajectory's start row is given (inpainted, as the planner
+    /// always gives it) rather than denoised; the spec's 0.5 by default.
+    #[serde(default = "default_start_given")]
+    pub start_given: f32,
     /// Train the Diffusion Policy baseline instead of `M(c, s₀)`: trajectories are windows of
     /// a demo's executed rows concatenated across its modes ([`crate::data::policy_windows`]),
     /// with no contact-mode input (the context is zero). Only the denoiser is trained.
     #[serde(default, skip_serializing_if = "std::ops::Not::not")]
     pub policy: bool,
+}
+
+fn default_start_given() -> f32 {
+    0.5
 }
 
 fn default_object_loss_weight() -> f32 {
@@ -86,6 +94,7 @@ impl Default for DenoiserSettings {
             ema_every: 10,
             ema_warmup: None,
             object_loss_weight: 10.0,
+            start_given: default_start_given(),
             policy: false,
         }
     }
@@ -296,6 +305,9 @@ impl TrainSettings {
                 "denoiser.object_loss_weight",
                 "must be positive and finite",
             ));
+        }
+        if !(0.0..=1.0).contains(&d.start_given) {
+            return Err(bad("denoiser.start_given", "must be in [0, 1]"));
         }
         if d.ema_every == 0 {
             return Err(bad("denoiser.ema_every", "must be positive"));
