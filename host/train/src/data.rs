@@ -402,3 +402,28 @@ mod policy_tests {
         assert_eq!(first_col(3, 0), 1101.0);
     }
 }
+
+#[cfg(test)]
+mod mask_tests {
+    use super::*;
+
+    /// The start row is given with the asked probability (always at 1, never at 0, about
+    /// half the time at the spec's 0.5), and never every row at once.
+    #[test]
+    fn start_row_given_with_the_asked_probability() {
+        let mut rng = KernelRng::seed_from_u64(3);
+        for (p, lo, hi) in [(1.0, 1.0, 1.0), (0.0, 0.2, 0.3), (0.5, 0.58, 0.67)] {
+            let n = 4000;
+            let mut given = 0;
+            for _ in 0..n {
+                let m = draw_mask(13, p, &mut rng);
+                assert!(!m.iter().all(|&g| g));
+                given += usize::from(m[0]);
+            }
+            let share = given as f64 / n as f64;
+            // Row 0 is also given by the every-row draw (0.25), unless un-given when every
+            // row was given (rare).
+            assert!((lo..=hi).contains(&share), "p {p}: start given in {share}");
+        }
+    }
+}
