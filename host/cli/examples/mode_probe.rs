@@ -3,7 +3,7 @@
 //!
 //! For every executed mode of each `result.json` given (written by `dips episode` or
 //! `dips eval`), samples 64 segments of that mode from its executed start state, as the
-//! planner does (the default sampler `dips_cli::search_args::DEFAULT_SAMPLER`, the task's
+//! planner does (`--sampler`, default `dips_cli::search_args::DEFAULT_SAMPLER`, the task's
 //! invariant angle) and prints: the executed and the mean diffused change of the task's
 //! progress coordinate (yaw in rad, card y in m), the mean first-step joint jump `‖q₁ − q₀‖`
 //! of the diffused segments (the model's start consistency), the share of segments with a
@@ -13,7 +13,7 @@
 //!
 //! ```sh
 //! cargo run --release -p dips-cli --example mode_probe -- \
-//!     [--models DIR] target/eval-work/screwdriver/episodes/dips/seed-1009/result.json
+//!     [--models DIR] [--sampler ddpm] target/eval-work/screwdriver/episodes/dips/seed-1009/result.json
 //! ```
 
 use std::path::PathBuf;
@@ -46,20 +46,25 @@ fn main() -> std::process::ExitCode {
 fn probe() -> anyhow::Result<()> {
     let mut args = std::env::args().skip(1);
     let mut models_arg = None;
+    let mut sampler_arg = dips_cli::search_args::DEFAULT_SAMPLER.to_string();
     let mut files = Vec::new();
     while let Some(a) = args.next() {
         if a == "--models" {
             models_arg = Some(PathBuf::from(
                 args.next().context("--models needs a directory")?,
             ));
+        } else if a == "--sampler" {
+            sampler_arg = args
+                .next()
+                .context("--sampler needs a sampler, e.g. ddpm or ddim:16")?;
         } else {
             files.push(PathBuf::from(a));
         }
     }
     if files.is_empty() {
-        bail!("usage: mode_probe [--models DIR] RESULT.json ...");
+        bail!("usage: mode_probe [--models DIR] [--sampler S] RESULT.json ...");
     }
-    let sampler = parse_sampler(dips_cli::search_args::DEFAULT_SAMPLER)?;
+    let sampler = parse_sampler(&sampler_arg)?;
     for file in files {
         let text = std::fs::read_to_string(&file)
             .with_context(|| format!("reading {}", file.display()))?;
