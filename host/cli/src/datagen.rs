@@ -91,7 +91,7 @@ pub fn run(args: DatagenArgs) -> anyhow::Result<()> {
             format!(
                 "unknown --sequences {:?}; available: {}",
                 args.sequences,
-                dips_host::execute::SequenceSource::NAMES
+                dips_dataset::SEQUENCE_SOURCES.join(", ")
             )
         })?;
     settings.shard = args.shard;

@@ -158,7 +158,10 @@ pub fn record_demo(
         "csvto_seconds".to_string(),
         format!("{:.3}", result.csvto_step_s.iter().sum::<f64>()),
     );
-    metadata.insert("sequences".to_string(), sequences.name().to_string());
+    metadata.insert(
+        dips_dataset::SEQUENCES_KEY.to_string(),
+        sequences.name().to_string(),
+    );
     metadata.insert(
         "exec_settings".to_string(),
         serde_json::to_string(settings).unwrap_or_default(),

@@ -150,10 +150,7 @@ pub fn generate(settings: &DatagenSettings, dir: &Path) -> Result<DatagenReport,
         // made from other sequences is never taken for this run's.
         match path.exists().then(|| read_demo(&path, kernel_task)) {
             Some(Ok(demo)) => {
-                let made = demo
-                    .metadata
-                    .get("sequences")
-                    .map_or(SequenceSource::Pattern.name(), String::as_str);
+                let made = demo.sequence_source();
                 if made != settings.sequences.name() {
                     return Err(DatagenError::Settings(format!(
                         "{} was made with --sequences {made}, this run asks for {}; give \

@@ -108,7 +108,23 @@ pub struct DemoRecord {
     pub metadata: BTreeMap<String, String>,
 }
 
+/// The metadata key naming the source of a demo's contact sequence (`dips datagen
+/// --sequences`); a demo without it was made from [`SEQUENCE_SOURCES`]`[0]`, the paper's
+/// pattern.
+pub const SEQUENCES_KEY: &str = "sequences";
+
+/// The sequence sources `dips datagen --sequences` knows, the default first.
+pub const SEQUENCE_SOURCES: [&str; 3] = ["pattern", "markov", "turn-runs"];
+
 impl DemoRecord {
+    /// The source of the demo's contact sequence ([`SEQUENCES_KEY`]; the paper's pattern
+    /// when absent).
+    pub fn sequence_source(&self) -> &str {
+        self.metadata
+            .get(SEQUENCES_KEY)
+            .map_or(SEQUENCE_SOURCES[0], String::as_str)
+    }
+
     /// Number of trajectories `N`.
     pub fn len(&self) -> usize {
         self.mode_index.len()

@@ -193,9 +193,7 @@ pub fn run(
     let prior = match &settings.prior_sources {
         None => dips_dataset::PriorFile::fit(&ds, PRIOR_P_MIN)?,
         Some(sources) => dips_dataset::PriorFile::fit_where(&ds, PRIOR_P_MIN, |d| {
-            sources
-                .iter()
-                .any(|s| s == settings::demo_sequence_source(d))
+            sources.iter().any(|s| s == d.sequence_source())
         })?,
     };
     prior.save(&out_dir.join(PRIOR_FILE))?;

@@ -185,16 +185,6 @@ pub struct TrainSettings {
     pub drop_modes_after_invalid: bool,
 }
 
-/// The sequence-source names [`TrainSettings::prior_sources`] accepts.
-pub const SEQUENCE_SOURCES: [&str; 3] = ["pattern", "markov", "turn-runs"];
-
-/// A demo's sequence source, from its `sequences` metadata (`pattern` when absent).
-pub fn demo_sequence_source(demo: &dips_dataset::DemoRecord) -> &str {
-    demo.metadata
-        .get("sequences")
-        .map_or("pattern", String::as_str)
-}
-
 impl Default for TrainSettings {
     fn default() -> Self {
         Self {
@@ -270,13 +260,13 @@ impl TrainSettings {
             }
             if let Some(s) = sources
                 .iter()
-                .find(|s| !SEQUENCE_SOURCES.contains(&s.as_str()))
+                .find(|s| !dips_dataset::SEQUENCE_SOURCES.contains(&s.as_str()))
             {
                 return Err(bad(
                     "prior_sources",
                     format!(
                         "unknown source {s:?}; allowed: {}",
-                        SEQUENCE_SOURCES.join(", ")
+                        dips_dataset::SEQUENCE_SOURCES.join(", ")
                     ),
                 ));
             }
