@@ -78,11 +78,7 @@ pub fn index(dir: &Path, task: SceneKind) -> Result<Manifest, DatagenError> {
         seeds.push(d.seed);
         trajectories += d.len();
         modes += d.modes.len();
-        if let Some(o) = d
-            .metadata
-            .get("outcome")
-            .and_then(|s| serde_json::from_str::<serde_json::Value>(s).ok())
-        {
+        if let Some(o) = d.outcome() {
             valid += usize::from(o["valid"].as_bool().unwrap_or(false));
             if let Some(m) = o["final_yaw"]
                 .as_f64()

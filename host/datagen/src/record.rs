@@ -150,7 +150,7 @@ pub fn record_demo(
     let outcome = DemoOutcome::of(&result);
     let mut metadata = BTreeMap::new();
     metadata.insert(
-        "outcome".to_string(),
+        dips_dataset::OUTCOME_KEY.to_string(),
         serde_json::to_string(&outcome).unwrap_or_default(),
     );
     // Timing is kept apart from the outcome: it is the only thing that differs between runs.

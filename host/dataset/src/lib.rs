@@ -113,6 +113,10 @@ pub struct DemoRecord {
 /// pattern.
 pub const SEQUENCES_KEY: &str = "sequences";
 
+/// The metadata key of the outcome `dips datagen` records for a demo (JSON: `valid`, the final
+/// metric, and per mode `mode`, `start_state`, `end_state`, `valid`).
+pub const OUTCOME_KEY: &str = "outcome";
+
 /// The sequence sources `dips datagen --sequences` knows, the default first.
 pub const SEQUENCE_SOURCES: [&str; 3] = ["pattern", "markov", "turn-runs"];
 
@@ -130,13 +134,16 @@ impl DemoRecord {
         self.mode_index.len()
     }
 
+    /// The demo's recorded outcome ([`OUTCOME_KEY`]), `None` when absent or not JSON.
+    pub fn outcome(&self) -> Option<serde_json::Value> {
+        serde_json::from_str(self.metadata.get(OUTCOME_KEY)?).ok()
+    }
+
     /// The index of a demo's first mode that did not stay valid (the object fell or left the
-    /// task's bounds in it), from the `outcome` metadata `dips datagen` writes (each mode's
-    /// `valid`); `None` when every mode stayed valid or the demo carries no such record.
+    /// task's bounds in it), from its [`Self::outcome`] (each mode's `valid`); `None` when
+    /// every mode stayed valid or the demo carries no such record.
     pub fn first_invalid_mode(&self) -> Option<usize> {
-        let outcome: serde_json::Value =
-            serde_json::from_str(self.metadata.get("outcome")?).ok()?;
-        outcome
+        self.outcome()?
             .get("modes")?
             .as_array()?
             .iter()
@@ -568,6 +575,14 @@ impl Dataset {
     /// The task's segment sizes.
     pub fn dims(&self) -> SegmentDims {
         self.task.dims()
+    }
+
+    /// [`DemoRecord::drop_modes_after_invalid`] on every demo; the trajectories dropped.
+    pub fn drop_modes_after_invalid(&mut self) -> usize {
+        self.demos
+            .iter_mut()
+            .map(DemoRecord::drop_modes_after_invalid)
+            .sum()
     }
 
     /// Trajectories over all demos.

@@ -21,6 +21,15 @@ pub const SCREWDRIVER_MODES: usize = 7;
 /// Modes per card episode.
 pub const CARD_MODES: usize = 5;
 
+/// The screwdriver's two regrasps in random order (one draw of `rng`).
+fn both_regrasps(rng: &mut KernelRng) -> [Mode; 2] {
+    if rng.below(2) == 0 {
+        [Mode::IndexRegrasp, Mode::ThumbMiddleRegrasp]
+    } else {
+        [Mode::ThumbMiddleRegrasp, Mode::IndexRegrasp]
+    }
+}
+
 /// Draw a contact sequence from the task's data-generation prior (spec §4.3): screwdriver
 /// "turn, then both regrasps in random order, repeated" (7 modes); card uniform (5 modes).
 pub fn sample_prior_sequence(task: SceneKind, rng: &mut KernelRng) -> Vec<Mode> {
@@ -29,12 +38,7 @@ pub fn sample_prior_sequence(task: SceneKind, rng: &mut KernelRng) -> Vec<Mode> 
             let mut seq = Vec::with_capacity(SCREWDRIVER_MODES);
             while seq.len() < SCREWDRIVER_MODES {
                 seq.push(Mode::Turn);
-                let pair = if rng.below(2) == 0 {
-                    [Mode::IndexRegrasp, Mode::ThumbMiddleRegrasp]
-                } else {
-                    [Mode::ThumbMiddleRegrasp, Mode::IndexRegrasp]
-                };
-                for m in pair {
+                for m in both_regrasps(rng) {
                     if seq.len() < SCREWDRIVER_MODES {
                         seq.push(m);
                     }
@@ -110,15 +114,9 @@ pub fn sample_turn_run_sequence(task: SceneKind, rng: &mut KernelRng) -> Vec<Mod
     while seq.len() < SCREWDRIVER_MODES {
         let run = lo + rng.below(hi - lo + 1);
         seq.extend(std::iter::repeat_n(Mode::Turn, run as usize));
-        let mut regrasps = if rng.below(2) == 0 {
-            vec![Mode::IndexRegrasp, Mode::ThumbMiddleRegrasp]
-        } else {
-            vec![Mode::ThumbMiddleRegrasp, Mode::IndexRegrasp]
-        };
-        if rng.below(2) == 0 {
-            regrasps.truncate(1);
-        }
-        seq.extend(regrasps);
+        let regrasps = both_regrasps(rng);
+        let count = if rng.below(2) == 0 { 1 } else { 2 };
+        seq.extend_from_slice(&regrasps[..count]);
     }
     seq.truncate(SCREWDRIVER_MODES);
     seq

@@ -427,9 +427,7 @@ pub fn measure(
     let task = scene.task();
     let mut ds = dips_dataset::read_dir(data_dir, task)?;
     if opts.drop_modes_after_invalid {
-        for d in &mut ds.demos {
-            d.drop_modes_after_invalid();
-        }
+        ds.drop_modes_after_invalid();
     }
     if held_out_seeds.is_empty() {
         bail!(

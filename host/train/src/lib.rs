@@ -167,10 +167,7 @@ fn read_dataset(
 ) -> Result<(dips_dataset::Dataset, usize)> {
     let mut ds = dips_dataset::read_dir(data_dir, task)?;
     let dropped = if settings.drop_modes_after_invalid {
-        ds.demos
-            .iter_mut()
-            .map(dips_dataset::DemoRecord::drop_modes_after_invalid)
-            .sum()
+        ds.drop_modes_after_invalid()
     } else {
         0
     };
