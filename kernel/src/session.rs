@@ -290,7 +290,7 @@ where
 /// shipped models were trained at: the screwdriver's yaw (an axisymmetric handle;
 /// [`DiffusionSegmentSampler::set_invariant_angle`]), whose demos start their segments at
 /// −1.07 … 0 rad (turns) and −1.03 … −0.41 (regrasps), so starts are kept within
-/// [−1.0, 0]. The card's heading is not one (a rectangle at a table edge).
+/// [[`SCREWDRIVER_MODEL_YAW_MIN`], 0] (with −1.0 the search stalled, `docs/online.md`). The card's heading is not one (a rectangle at a table edge).
 pub fn invariant_angle(task: Task) -> Option<crate::adapters::InvariantAngle> {
     match task {
         Task::Screwdriver => Some(crate::adapters::InvariantAngle {

@@ -268,6 +268,16 @@ pub fn draw_mask(rows: usize, start_given: f32, rng: &mut KernelRng) -> Vec<bool
     m
 }
 
+/// How a training mask gives the start row (spec §4.3).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct StartRow {
+    /// Probability that row 0 is given ([`draw_mask`]).
+    pub given: f32,
+    /// A given row 0 gives its state columns only, as the planner inpaints it; its controls
+    /// stay noised and in the loss. `false`: the whole row, as the spec's training masks.
+    pub state_only: bool,
+}
+
 /// One forward-noised training batch (flat, ready for tensors).
 #[derive(Debug, Clone)]
 pub struct NoisedBatch {
@@ -292,7 +302,7 @@ pub fn noise_batch(
     dims: SegmentDims,
     alpha_bar: &[f32],
     dropout: f32,
-    start_given: f32,
+    start: StartRow,
     rng: &mut KernelRng,
 ) -> NoisedBatch {
     let (td, d) = (dims.floats(), dims.dim());
@@ -310,14 +320,14 @@ pub fn noise_batch(
         } else {
             1.0
         };
-        let mask = draw_mask(dims.horizon, start_given, rng);
+        let mask = draw_mask(dims.horizon, start.given, rng);
         let (sa, sb) = (alpha_bar[ti].sqrt(), (1.0 - alpha_bar[ti]).sqrt());
         for (r, &given) in mask.iter().enumerate() {
             for c in 0..d {
                 let k = i * td + r * d + c;
                 let e = rng.normal_f32();
                 eps[k] = e;
-                if given {
+                if given && !(r == 0 && start.state_only && c >= dims.state_dim) {
                     x_t[k] = x0[k];
                 } else {
                     x_t[k] = sa * x0[k] + sb * e;
@@ -424,6 +434,50 @@ mod mask_tests {
             // Row 0 is also given by the every-row draw (0.25), unless un-given when every
             // row was given (rare).
             assert!((lo..=hi).contains(&share), "p {p}: start given in {share}");
+        }
+    }
+
+    /// With `state_only`, a given start row keeps its state columns clean and out of the
+    /// loss while its controls are noised and in the loss, as the planner's inpainting
+    /// leaves them; without it the whole row is given. Other given rows are whole either way.
+    #[test]
+    fn a_state_only_start_row_leaves_its_controls_noised() {
+        let dims = SegmentDims {
+            horizon: 4,
+            state_dim: 3,
+            action_dim: 2,
+            fingers: 2,
+        };
+        let (b, d, td) = (64, dims.dim(), dims.floats());
+        let x0: Vec<f32> = (0..b * td).map(|i| (i % 7) as f32 + 1.0).collect();
+        let alpha_bar = vec![0.5f32; 8];
+        for state_only in [false, true] {
+            let start = StartRow {
+                given: 1.0,
+                state_only,
+            };
+            let mut rng = KernelRng::seed_from_u64(5);
+            let nb = noise_batch(
+                &x0,
+                vec![1.0; b * 2],
+                dims,
+                &alpha_bar,
+                0.0,
+                start,
+                &mut rng,
+            );
+            for i in 0..b {
+                let row0 = i * td..i * td + d;
+                for (c, k) in row0.enumerate() {
+                    let clean = nb.x_t[k] == x0[k] && nb.weight[k] == 0.0;
+                    let noised = nb.x_t[k] != x0[k] && nb.weight[k] == 1.0;
+                    if c < dims.state_dim || !state_only {
+                        assert!(clean, "state_only {state_only}: row 0 column {c} given");
+                    } else {
+                        assert!(noised, "state_only {state_only}: row 0 control {c} noised");
+                    }
+                }
+            }
         }
     }
 }

@@ -107,6 +107,7 @@ pub fn net_dims(dims: SegmentDims) -> NetDims {
     NetDims {
         horizon: dims.horizon,
         dim: dims.dim(),
+        state_dim: dims.state_dim,
         fingers: dims.fingers,
     }
 }
@@ -199,7 +200,7 @@ fn eval_set(
         dims,
         alpha_bar,
         0.0,
-        settings.denoiser.start_given,
+        settings.denoiser.start_row(),
         &mut rng,
     );
     Some(EvalSet { batch, n: s.n })
@@ -333,7 +334,7 @@ pub fn train_denoiser(
             dims,
             &alpha_bar,
             s.context_dropout,
-            s.start_given,
+            s.start_row(),
             &mut rng,
         );
         if s.object_loss_weight != 1.0 {

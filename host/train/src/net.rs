@@ -9,7 +9,10 @@
 //! `eps [B,T,D]`. Unlike Diffuser, the first stage's skip is used: without it every row's
 //! noise must pass a stride-2 bottleneck, and the held-out loss stalls (`docs/training.md`). The conditioning embedding is
 //! `Mish(Linear([SinPos(t) ; cond_mask·Mish(Linear(c))]))`, read by every residual block
-//! through its own `Linear(E→out)`.
+//! through its own `Linear(E→out)`. With `net.start_embed_dim` > 0 the embedding also reads
+//! the start row's state columns, `[… ; Mish(Linear(x[:, 0, :S]))]` (row 0 is the inpainted
+//! start whenever the planner samples), so the start state reaches every block directly
+//! instead of only through the convolutions.
 //!
 //! Discriminator (§4.5): the same down stages and middle blocks (no time padding, no skips),
 //! the conditioning `Mish(Linear(Mish(Linear(c))))`, global average pooling over time,
@@ -349,6 +352,8 @@ pub struct NetDims {
     pub horizon: usize,
     /// Columns `D`.
     pub dim: usize,
+    /// State columns (the first of each row).
+    pub state_dim: usize,
     /// Fingers `F`.
     pub fingers: usize,
 }
@@ -360,6 +365,7 @@ pub struct Denoiser {
     padded: usize,
     freqs: Vec<f32>,
     ctx: Linear,
+    start: Option<Linear>,
     emb: Linear,
     enc: Encoder,
     ups: Vec<(ResBlock, ResBlock, Upsample)>,
@@ -384,7 +390,9 @@ impl Denoiser {
     pub fn new(ps: &mut ParamStore, dims: NetDims, net: &NetSettings, rng: &mut KernelRng) -> Self {
         let c = net.context_embed_dim;
         let ctx = Linear::new(ps, "context", dims.fingers, c, rng);
-        let emb = Linear::new(ps, "embed", net.time_embed_dim + c, net.embed_dim, rng);
+        let se = net.start_embed_dim;
+        let start = (se > 0).then(|| Linear::new(ps, "start", dims.state_dim, se, rng));
+        let emb = Linear::new(ps, "embed", net.time_embed_dim + c + se, net.embed_dim, rng);
         let enc = Encoder::new(ps, dims.dim, net, rng);
         let mut ups = Vec::new();
         for i in (1..net.stages()).rev() {
@@ -408,6 +416,7 @@ impl Denoiser {
             padded: dims.horizon.div_ceil(m) * m,
             freqs: sin_freqs(net.time_embed_dim),
             ctx,
+            start,
             emb,
             enc,
             ups,
@@ -436,7 +445,13 @@ impl Denoiser {
         let arg = t.reshape([b, 1]) * freqs;
         let temb = Tensor::cat(vec![arg.clone().sin(), arg.cos()], 1);
         let c = mish(self.ctx.fwd(p, context)) * cond_mask.reshape([b, 1]);
-        let emb = mish(self.emb.fwd(p, Tensor::cat(vec![temb, c], 1)));
+        let mut parts = vec![temb, c];
+        if let Some(start) = &self.start {
+            let sd = self.dims.state_dim;
+            let s0 = x.clone().narrow(1, 0, 1).narrow(2, 0, sd).reshape([b, sd]);
+            parts.push(mish(start.fwd(p, s0)));
+        }
+        let emb = mish(self.emb.fwd(p, Tensor::cat(parts, 1)));
 
         let mut h = x.swap_dims(1, 2);
         if self.padded > tt {
@@ -469,7 +484,17 @@ impl Denoiser {
         let ce = g.node("Mish", &[&ce], vec![]);
         let m1 = g.unsqueeze("cond_mask", &[1]);
         let ce = g.node("Mul", &[&ce, &m1], vec![]);
-        let cat = g.node("Concat", &[&temb, &ce], vec![Attr::Int("axis", 1)]);
+        let mut parts = vec![temb, ce];
+        if let Some(start) = &self.start {
+            let (st, en) = (g.i64(&[0, 0]), g.i64(&[1, self.dims.state_dim as i64]));
+            let ax = g.i64(&[1, 2]);
+            let s0 = g.node("Slice", &["x", &st, &en, &ax], vec![]);
+            let s0 = g.node("Flatten", &[&s0], vec![Attr::Int("axis", 1)]);
+            let se = start.emit(g, ps, &s0);
+            parts.push(g.node("Mish", &[&se], vec![]));
+        }
+        let refs: Vec<&str> = parts.iter().map(String::as_str).collect();
+        let cat = g.node("Concat", &refs, vec![Attr::Int("axis", 1)]);
         let emb = self.emb.emit(g, ps, &cat);
         let emb = g.node("Mish", &[&emb], vec![]);
 

@@ -20,6 +20,14 @@ pub struct NetSettings {
     pub context_embed_dim: usize,
     /// GroupNorm groups (every width must be a multiple).
     pub groups: usize,
+    /// Denoiser only: width of an embedding of the start row's state columns joined to the
+    /// conditioning embedding; 0 (the default) reads the start only through the convolutions.
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub start_embed_dim: usize,
+}
+
+fn is_zero(v: &usize) -> bool {
+    *v == 0
 }
 
 impl Default for NetSettings {
@@ -31,6 +39,7 @@ impl Default for NetSettings {
             time_embed_dim: 32,
             context_embed_dim: 32,
             groups: 8,
+            start_embed_dim: 0,
         }
     }
 }
@@ -66,6 +75,11 @@ pub struct DenoiserSettings {
     /// always gives it) rather than denoised; the spec's 0.5 by default.
     #[serde(default = "default_start_given")]
     pub start_given: f32,
+    /// A given start row gives its state columns only, as the planner inpaints row 0 (the
+    /// controls stay noised and in the loss); `false`, the default, gives the whole row as
+    /// the spec's masks do, so a given start row never looks like the planner's.
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub start_state_only: bool,
     /// Train the Diffusion Policy baseline instead of `M(c, s₀)`: trajectories are windows of
     /// a demo's executed rows concatenated across its modes ([`crate::data::policy_windows`]),
     /// with no contact-mode input (the context is zero). Only the denoiser is trained.
@@ -95,7 +109,18 @@ impl Default for DenoiserSettings {
             ema_warmup: None,
             object_loss_weight: 10.0,
             start_given: default_start_given(),
+            start_state_only: false,
             policy: false,
+        }
+    }
+}
+
+impl DenoiserSettings {
+    /// How the training masks give the start row.
+    pub fn start_row(&self) -> crate::data::StartRow {
+        crate::data::StartRow {
+            given: self.start_given,
+            state_only: self.start_state_only,
         }
     }
 }
@@ -237,6 +262,9 @@ impl NetSettings {
         }
         if self.time_embed_dim < 4 || !self.time_embed_dim.is_multiple_of(2) {
             return Err(bad("net.time_embed_dim", "must be even and at least 4"));
+        }
+        if self.start_embed_dim > 4096 {
+            return Err(bad("net.start_embed_dim", "must be 0 (none) to 4096"));
         }
         Ok(())
     }

@@ -79,9 +79,13 @@ fn training_lowers_the_held_out_loss() {
     std::fs::remove_dir_all(&dir).unwrap();
 }
 
-fn check_export(task: Task) {
-    let (dir, ds) = dataset(task, task.name(), 6);
-    let s = tiny(task);
+/// Train tiny models and check their exports on tract and the kernel against burn;
+/// `start_embed_dim` > 0 also trains with state-only start rows.
+fn check_export(task: Task, start_embed_dim: usize) {
+    let (dir, ds) = dataset(task, &format!("{}-{start_embed_dim}", task.name()), 6);
+    let mut s = tiny(task);
+    s.net.start_embed_dim = start_embed_dim;
+    s.denoiser.start_state_only = start_embed_dim > 0;
     let opts = RunOptions::default();
     let den = train_denoiser(&ds, &s, &dir, &opts).unwrap();
     let disc = train_discriminator(&ds, &s, &den, &dir, &opts).unwrap();
@@ -140,12 +144,18 @@ fn check_export(task: Task) {
 
 #[test]
 fn card_export_agrees_with_both_engines() {
-    check_export(Task::Card);
+    check_export(Task::Card, 0);
 }
 
 #[test]
 fn screwdriver_export_agrees_with_both_engines() {
-    check_export(Task::Screwdriver);
+    check_export(Task::Screwdriver, 0);
+}
+
+/// The start embedding (a Slice of `x`'s row 0, Flatten, Gemm, Mish) exports op for op.
+#[test]
+fn start_embedding_export_agrees_with_both_engines() {
+    check_export(Task::Screwdriver, 8);
 }
 
 #[test]
