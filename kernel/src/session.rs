@@ -304,7 +304,7 @@ pub fn invariant_angle(task: Task) -> Option<crate::adapters::InvariantAngle> {
 
 /// The lowest screwdriver start yaw the planner asks the models about (rad); see
 /// [`invariant_angle`].
-pub const SCREWDRIVER_MODEL_YAW_MIN: f32 = 0.0;
+pub const SCREWDRIVER_MODEL_YAW_MIN: f32 = -0.6;
 
 /// Plan `spec` with two model engines (engines → adapters → planner): the denoiser is wrapped
 /// in the diffusion sampler with `spec.sampler` (and the task's [`invariant_angle`]), the
@@ -339,7 +339,6 @@ where
     sampler.set_invariant_angle(invariant_angle(spec.task));
     let mut scorer = DiscriminatorScorer::new(discriminator, scorer_buf, &layout.scorer)
         .map_err(SessionError::Scorer)?;
-    scorer.set_invariant_angle(invariant_angle(spec.task));
     Ok(plan_with_adapters(
         planner,
         spec,

@@ -198,9 +198,6 @@ fn in_process_with(
         request.task,
     )));
     let mut scorer = DiscriminatorScorer::new(disc, &mut cb, &cl).expect("scorer adapter");
-    scorer.set_invariant_angle(dips_kernel::session::invariant_angle(Task::from(
-        request.task,
-    )));
     let mut planner = Box::new(PaperPlanner::new());
     plan_request(
         &mut planner,

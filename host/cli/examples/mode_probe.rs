@@ -141,9 +141,6 @@ fn probe() -> anyhow::Result<()> {
                 jumps.push(jmp);
             }
             let mut x = out.clone();
-            if let Some(a) = invariant_angle(task) {
-                a.turn_into_range(&mut x, &task.dims());
-            }
             normalize_in_place(&models.discriminator.normalization(), &mut x);
             let mut psi = vec![0f32; SAMPLES];
             models

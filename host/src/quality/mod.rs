@@ -276,18 +276,14 @@ fn held_out(ds: &Dataset, seeds: &[u64], k: usize) -> Held {
     h
 }
 
-/// Score raw trajectories of `task` with the discriminator, each turned into the model's range
-/// of the task's invariant angle first, as the planner's scorer does.
-fn score(disc: &mut AnyEngine, task: Task, x: &[f32], context: &[f32]) -> anyhow::Result<Scores> {
+/// Score raw trajectories with the discriminator.
+fn score(disc: &mut AnyEngine, x: &[f32], context: &[f32]) -> anyhow::Result<Scores> {
     use dips_kernel::engine::DiscriminatorEngine;
     let dims = DiscriminatorEngine::dims(disc);
     let td = dims.floats_per_trajectory();
     let f = dims.fingers;
     let n = x.len() / td;
     let mut xn = x.to_vec();
-    if let Some(a) = dips_kernel::session::invariant_angle(task) {
-        a.turn_into_range(&mut xn, &task.dims());
-    }
     dips_kernel::diffusion::normalize_in_place(&DiscriminatorEngine::normalization(disc), &mut xn);
     let mut p = vec![0f32; n];
     let chunk = DiscriminatorEngine::max_batch(disc).clamp(1, 256);
@@ -340,9 +336,9 @@ fn sample_like(
         .chunks_exact(td)
         .flat_map(|t| t[..sd].iter().copied())
         .collect();
-    // As the planner samples: the start turned into the model's range of the task's
-    // invariant angle, the sample turned back.
-    let invariant = dips_kernel::session::invariant_angle(task);
+    // The model as trained, at the data's own start states (the planner's sampler also uses
+    // the screwdriver's yaw symmetry, which leaves starts inside the data's yaws alone).
+    let invariant = None;
     sample_trajectories(
         engine,
         config,
@@ -462,7 +458,7 @@ pub fn measure(
         trajectories: held.n,
         sample_seconds: 0.0,
         coherence: coherence::measure(scene, &hand, &held.x, &held.context),
-        scores: score(&mut disc, task, &held.x, &held.context)?,
+        scores: score(&mut disc, &held.x, &held.context)?,
         object_motion: coherence::object_motion(task, &held.x, &held.context, None),
     }];
     let steps = DenoiserEngine::dims(&engine).diffusion_steps;
@@ -479,7 +475,7 @@ pub fn measure(
             trajectories: held.n,
             sample_seconds: t0.elapsed().as_secs_f64(),
             coherence: coherence::measure(scene, &hand, &x, &held.context),
-            scores: score(&mut disc, task, &x, &held.context)?,
+            scores: score(&mut disc, &x, &held.context)?,
             object_motion: coherence::object_motion(task, &x, &held.context, Some(&held.x)),
         });
     }
@@ -503,7 +499,7 @@ pub fn measure(
         &gc,
         opts.seed ^ 0x9a11,
     )?;
-    let particles = score(&mut disc, task, &gs, &gc)?;
+    let particles = score(&mut disc, &gs, &gc)?;
     progress("open-loop executions");
     let starts = moving_starts(&ds, held_out_seeds, opts.open_loop_trials);
     let mut trials = Vec::new();

@@ -31,15 +31,6 @@ impl Samples {
         s
     }
 
-    /// Turn every trajectory about `task`'s invariant angle so that its start lies in the
-    /// range the planner gives the models (`dips_kernel::session::invariant_angle`); a task
-    /// without one is left as it is.
-    pub fn turn_into_model_range(&mut self, task: Task) {
-        if let Some(a) = dips_kernel::session::invariant_angle(task) {
-            a.turn_into_range(&mut self.x, &task.dims());
-        }
-    }
-
     /// A deterministic subset of at most `k` trajectories, evenly spread over the table.
     pub fn subset(&self, k: usize, dims: SegmentDims) -> Self {
         if k >= self.n {
@@ -488,41 +479,5 @@ mod mask_tests {
                 }
             }
         }
-    }
-
-    /// `canonical_angle`'s turn: every screwdriver start lands in the planner's range, each
-    /// trajectory's yaw change is kept; the card has no such angle and is left alone.
-    #[test]
-    fn trajectories_are_turned_into_the_planners_range() {
-        let task = Task::Screwdriver;
-        let dims = task.dims();
-        let (td, d) = (dims.floats(), dims.dim());
-        let (c, sn) = angle_columns(task)[0];
-        let range = dips_kernel::session::invariant_angle(task).unwrap();
-        let mut s = Samples::default();
-        for (k, y0) in [-1.9f32, -0.3, 0.0, 0.5].into_iter().enumerate() {
-            let mut t = vec![0.1 * k as f32; td];
-            for (r, row) in t.chunks_exact_mut(d).enumerate() {
-                let y = y0 - 0.05 * r as f32;
-                (row[c], row[sn]) = (y.cos(), y.sin());
-            }
-            s.x.extend(t);
-            s.n += 1;
-        }
-        let before = s.clone();
-        s.turn_into_model_range(task);
-        for (t, b) in s.x.chunks_exact(td).zip(before.x.chunks_exact(td)) {
-            let yaw = |row: &[f32]| row[sn].atan2(row[c]);
-            assert!((range.lo - 1e-6..=range.hi + 1e-6).contains(&yaw(t)));
-            let last = &t[td - d..];
-            let blast = &b[td - d..];
-            assert!(((yaw(last) - yaw(t)) - (yaw(blast) - yaw(b))).abs() < 1e-5);
-            for i in (0..td).filter(|i| i % d != c && i % d != sn) {
-                assert_eq!(t[i], b[i]);
-            }
-        }
-        let mut card = before.clone();
-        card.turn_into_model_range(Task::Card);
-        assert_eq!(card.x, before.x);
     }
 }

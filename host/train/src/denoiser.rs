@@ -164,12 +164,8 @@ pub(crate) fn split_samples(ds: &Dataset, settings: &TrainSettings) -> Result<(S
     } else {
         Samples::gather
     };
-    let mut train = gather(ds, &split.train);
-    let mut held = gather(ds, &split.held_out);
-    if settings.canonical_angle {
-        train.turn_into_model_range(ds.task);
-        held.turn_into_model_range(ds.task);
-    }
+    let train = gather(ds, &split.train);
+    let held = gather(ds, &split.held_out);
     if train.n == 0 {
         return Err(TrainError::DatasetUnusable(
             "no training trajectories after the held-out split".into(),

@@ -208,13 +208,6 @@ pub struct TrainSettings {
     /// Default false (every trajectory).
     #[serde(default, skip_serializing_if = "std::ops::Not::not")]
     pub drop_modes_after_invalid: bool,
-    /// Turn every trajectory both networks learn from about the task's invariant angle into
-    /// the range the planner samples and scores in (`dips_kernel::session::invariant_angle`:
-    /// the screwdriver's yaw, each start turned to 0), so the models never see an absolute
-    /// yaw and a late state differs from an early one only in what physically differs.
-    /// Default false (trajectories as recorded). No effect on a task without such an angle.
-    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
-    pub canonical_angle: bool,
 }
 
 impl Default for TrainSettings {
@@ -230,7 +223,6 @@ impl Default for TrainSettings {
             discriminator: DiscriminatorSettings::default(),
             prior_sources: None,
             drop_modes_after_invalid: false,
-            canonical_angle: false,
         }
     }
 }

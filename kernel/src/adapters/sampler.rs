@@ -308,27 +308,6 @@ impl InvariantAngle {
         }
     }
 
-    /// Turn every segment of `segments` (each `dims.floats()`) about the angle so that its
-    /// row 0's angle lies in `[lo, hi]`, as the model saw the segment's start when sampling
-    /// it: what the discriminator scores ([`crate::adapters::DiscriminatorScorer`]).
-    pub fn turn_into_range(&self, segments: &mut [f32], dims: &SegmentDims) {
-        let c = self.cos_column;
-        let d = dims.dim();
-        for seg in segments.chunks_mut(dims.floats()) {
-            let a = libm::atan2f(seg[c + 1], seg[c]);
-            let k = a.clamp(self.lo, self.hi);
-            if k == a {
-                continue;
-            }
-            let (s0, c0) = (libm::sinf(k - a), libm::cosf(k - a));
-            for row in seg.chunks_mut(d) {
-                let (cr, sr) = (row[c], row[c + 1]);
-                row[c] = cr * c0 - sr * s0;
-                row[c + 1] = sr * c0 + cr * s0;
-            }
-        }
-    }
-
     /// Turn every row's angle of each segment in `out`, sampled from `clamped` (the starts
     /// after [`Self::clamp_starts`]), by its start's angle in `starts` minus the clamped one,
     /// and put the start's exact `(cos, sin)` back into row 0.
@@ -414,45 +393,5 @@ mod tests {
         let seg = &out[10..];
         assert_eq!(seg[..4], starts[4..8], "row 0 is exactly the start");
         assert!((yaw(&seg[5..], 2) - (-1.4 - 0.3)).abs() < 1e-5);
-    }
-
-    /// What the scorer shows the discriminator: each segment turned so its start's angle is in
-    /// range, every row by the same angle, nothing else moved; in-range segments untouched.
-    #[test]
-    fn segments_are_turned_into_the_models_range() {
-        let dims = SegmentDims {
-            horizon: 2,
-            state_dim: 4,
-            action_dim: 1,
-            fingers: 1,
-        };
-        let a = InvariantAngle {
-            cos_column: 2,
-            lo: -0.6,
-            hi: 0.0,
-        };
-        let row = |q: f32, y: f32| [q, 0.5, libm::cosf(y), libm::sinf(y), 0.25];
-        let mut segs: Vec<f32> = [(-0.3, -0.5), (-1.4, -1.9), (0.4, 0.2)]
-            .iter()
-            .flat_map(|&(y0, y1)| {
-                let mut s = row(0.1, y0).to_vec();
-                s.extend(row(0.2, y1));
-                s
-            })
-            .collect();
-        let before = segs.clone();
-        a.turn_into_range(&mut segs, &dims);
-        assert_eq!(segs[..10], before[..10], "inside the range nothing moves");
-        for (k, (want0, want1)) in [(1, (-0.6, -1.1)), (2, (0.0, -0.2))] {
-            let (seg, was) = (&segs[k * 10..(k + 1) * 10], &before[k * 10..(k + 1) * 10]);
-            assert!((yaw(seg, 2) - want0).abs() < 1e-5, "segment {k} row 0");
-            assert!(
-                (yaw(&seg[5..], 2) - want1).abs() < 1e-5,
-                "segment {k} row 1"
-            );
-            for i in [0, 1, 4, 5, 6, 9] {
-                assert_eq!(seg[i], was[i], "segment {k}: only the angle moves");
-            }
-        }
     }
 }

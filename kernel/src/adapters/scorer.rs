@@ -2,7 +2,7 @@
 
 use super::check_dims;
 use super::error::{AdapterBuffer, AdapterError, DimsMismatch, SegmentModelError};
-use super::sampler::{InvariantAngle, write_context};
+use super::sampler::write_context;
 use crate::diffusion::normalize::{is_valid, normalize_in_place};
 use crate::engine::{DiscriminatorEngine, ModelDims};
 use crate::mode::{ContactMode, SegmentDims};
@@ -46,7 +46,6 @@ pub struct DiscriminatorScorer<'s, E> {
     segments: &'s mut [f32],
     context: &'s mut [f32],
     chunk: usize,
-    invariant_angle: Option<InvariantAngle>,
 }
 
 impl<'s, E: DiscriminatorEngine> DiscriminatorScorer<'s, E> {
@@ -101,7 +100,6 @@ impl<'s, E: DiscriminatorEngine> DiscriminatorScorer<'s, E> {
             segments,
             context,
             chunk,
-            invariant_angle: None,
         })
     }
 
@@ -118,14 +116,6 @@ impl<'s, E: DiscriminatorEngine> DiscriminatorScorer<'s, E> {
     /// Give the engine back.
     pub fn into_engine(self) -> E {
         self.engine
-    }
-
-    /// Score every segment turned about `angle` so that its start's angle lies in the model's
-    /// range ([`InvariantAngle::turn_into_range`]), the frame the sampler drew it in
-    /// ([`crate::adapters::DiffusionSegmentSampler::set_invariant_angle`]); `None` (the
-    /// default) scores segments as they are.
-    pub fn set_invariant_angle(&mut self, angle: Option<InvariantAngle>) {
-        self.invariant_angle = angle;
     }
 
     /// Whether the model scores segments of `dims`' sizes; the first size that differs is
@@ -191,12 +181,6 @@ impl<E: DiscriminatorEngine> SegmentScorer for DiscriminatorScorer<'_, E> {
                 return Err(AdapterError::EngineBatch.into());
             };
             x.copy_from_slice(src);
-            if let Some(a) = self
-                .invariant_angle
-                .filter(|a| a.cos_column + 1 < dims.state_dim)
-            {
-                a.turn_into_range(x, dims);
-            }
             normalize_in_place(&self.engine.normalization(), x);
             write_context(modes.get(c0..c0 + m).unwrap_or(&[]), fingers, ctx)?;
             self.engine
