@@ -1,35 +1,56 @@
-//! What the models predict from the states an episode actually reached, beside what the
-//! world did (the screwdriver diagnosis in `docs/results/README.md`).
+//! What the models predict from given start states, beside what the world and the training
+//! data did there (the screwdriver diagnosis in `docs/results/README.md`).
 //!
-//! For every executed mode of each `result.json` given (written by `dips episode` or
-//! `dips eval`), samples 64 segments of that mode from its executed start state, as the
-//! planner does (`--sampler`, default `dips_cli::search_args::DEFAULT_SAMPLER`, the task's
-//! invariant angle) and prints: the executed and the mean diffused change of the task's
-//! progress coordinate (yaw in rad, card y in m), the mean first-step joint jump `‖q₁ − q₀‖`
-//! of the diffused segments (the model's start consistency), the share of segments with a
-//! joint more than 0.05 rad outside the Allegro hand's limits after row 0 and the mean of their
-//! largest excess (rad), and Ψ's mean score, its effective sample size over the 64 and its
-//! correlation with the segments' first-step jumps.
+//! Two sources of start states:
+//!
+//! - **Episodes**: for every executed mode of each `result.json` given (written by
+//!   `dips episode` or `dips eval`), the mode's executed start state.
+//! - **Demos** (`--demos DIR`): the modes of a datagen directory's demos, optionally only
+//!   mode `--mode M` right after mode `--after P` (`start` for a demo's first mode), starting
+//!   below `--below X` in the task's progress coordinate, of the models' held-out demos
+//!   (`--held-out`, from `train_report.json`), at most `--limit N` (default 40). Modes after a
+//!   demo's first invalid one (the object already fell) are skipped. Each line then also gives
+//!   the mean change and first-step jump of the demo's own trajectories of that mode (every
+//!   online step and particle: what the denoiser was fitted to there), and a summary closes
+//!   the list: the means, the correlation of the model's change with the data's over the
+//!   states, and the mean absolute difference.
+//!
+//! From each start state it samples 64 segments of the mode as the planner does (`--sampler`,
+//! default `dips_cli::search_args::DEFAULT_SAMPLER`, the task's invariant angle; `--guidance W`
+//! and `--yaw-min RAD` change the guidance weight and the lowest start yaw the models are
+//! asked about) and prints: the executed and the mean diffused change of the task's progress
+//! coordinate (yaw in rad, card y in m), the mean first-step joint jump `‖q₁ − q₀‖` of the
+//! diffused segments (the model's start consistency), the share of segments with a joint more
+//! than 0.05 rad outside the Allegro hand's limits after row 0 and the mean of their largest
+//! excess (rad), and Ψ's mean score, its effective sample size over the 64 and its correlation
+//! with the segments' first-step jumps.
 //!
 //! ```sh
 //! cargo run --release -p dips-cli --example mode_probe -- \
 //!     [--models DIR] [--sampler ddpm] target/eval-work/screwdriver/episodes/dips/seed-1009/result.json
+//! cargo run --release -p dips-cli --example mode_probe -- --models DIR \
+//!     --demos target/data/screwdriver --mode turn --after turn --below -1.0
 //! ```
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 use anyhow::{Context, bail};
 use dips_cli::output::line;
 use dips_host::planning::{Models, models_dir, parse_sampler, sample_trajectories};
 use dips_host::problems::contract::contract_state;
+use dips_kernel::adapters::InvariantAngle;
+use dips_kernel::diffusion::SamplerConfig;
 use dips_kernel::diffusion::normalize::normalize_in_place;
 use dips_kernel::engine::DiscriminatorEngine;
 use dips_kernel::mode::{Task, TaskMode};
 use dips_kernel::rng::KernelRng;
 use dips_kernel::session::invariant_angle;
 
-/// Segments sampled per executed mode.
+/// Segments sampled per start state.
 const SAMPLES: usize = 64;
+
+/// Start states probed from demos when `--limit` is not given.
+const DEFAULT_LIMIT: usize = 40;
 
 fn main() -> std::process::ExitCode {
     match probe() {
@@ -43,150 +64,412 @@ fn main() -> std::process::ExitCode {
     }
 }
 
+/// Which demo modes `--demos` probes.
+#[derive(Debug, Default)]
+struct DemoFilter {
+    mode: Option<String>,
+    after: Option<String>,
+    below: Option<f64>,
+    held_out: bool,
+    limit: Option<usize>,
+}
+
+/// One start state to probe.
+struct Run {
+    /// Where it comes from (a demo's seed and mode index), empty for episodes.
+    label: String,
+    mode: TaskMode,
+    /// World state `[q, o]` at the mode's start and end (object angle in radians).
+    start: Vec<f64>,
+    end: Vec<f64>,
+    /// The demo's own trajectories of this mode: mean change of progress and first-step jump.
+    data: Option<(f32, f32)>,
+}
+
+/// What the models make of one start state.
+struct Probe {
+    delta: f32,
+    jump: f32,
+    outside: usize,
+    excess: f32,
+    psi_mean: f32,
+    ess: f32,
+    psi_jump_correlation: f32,
+}
+
+/// Everything but the files: the models, the sampler and the start-angle range.
+struct Setup {
+    models_arg: Option<PathBuf>,
+    sampler: SamplerConfig,
+    yaw_min: Option<f32>,
+}
+
 fn probe() -> anyhow::Result<()> {
     let mut args = std::env::args().skip(1);
     let mut models_arg = None;
     let mut sampler_arg = dips_cli::search_args::DEFAULT_SAMPLER.to_string();
+    let mut guidance: Option<f32> = None;
+    let mut yaw_min: Option<f32> = None;
+    let mut demos: Option<PathBuf> = None;
+    let mut task_arg: Option<String> = None;
+    let mut filter = DemoFilter::default();
     let mut files = Vec::new();
     while let Some(a) = args.next() {
-        if a == "--models" {
-            models_arg = Some(PathBuf::from(
-                args.next().context("--models needs a directory")?,
-            ));
-        } else if a == "--sampler" {
-            sampler_arg = args
-                .next()
-                .context("--sampler needs a sampler, e.g. ddpm or ddim:16")?;
-        } else {
-            files.push(PathBuf::from(a));
+        let mut value = |what: &str| args.next().with_context(|| format!("{a} needs {what}"));
+        match a.as_str() {
+            "--models" => models_arg = Some(PathBuf::from(value("a directory")?)),
+            "--sampler" => sampler_arg = value("a sampler, e.g. ddpm or ddim:16")?,
+            "--guidance" => guidance = Some(value("a weight")?.parse()?),
+            "--yaw-min" => yaw_min = Some(value("an angle in radians")?.parse()?),
+            "--demos" => demos = Some(PathBuf::from(value("a datagen directory")?)),
+            "--task" => task_arg = Some(value("a task name")?),
+            "--mode" => filter.mode = Some(value("a mode name")?),
+            "--after" => filter.after = Some(value("a mode name or `start`")?),
+            "--below" => filter.below = Some(value("a progress value")?.parse()?),
+            "--limit" => filter.limit = Some(value("a count")?.parse()?),
+            "--held-out" => filter.held_out = true,
+            _ if a.starts_with("--") => bail!("unknown option {a}"),
+            _ => files.push(PathBuf::from(a)),
         }
     }
-    if files.is_empty() {
-        bail!("usage: mode_probe [--models DIR] [--sampler S] RESULT.json ...");
+    let mut sampler = parse_sampler(&sampler_arg)?;
+    if let Some(w) = guidance {
+        sampler.guidance_weight = w;
     }
-    let sampler = parse_sampler(&sampler_arg)?;
-    for file in files {
-        let text = std::fs::read_to_string(&file)
-            .with_context(|| format!("reading {}", file.display()))?;
-        let r: serde_json::Value = serde_json::from_str(&text)?;
-        let task = Task::from_name(r["task"].as_str().context("no task")?)
-            .map_err(|e| anyhow::anyhow!("{e:?}"))?;
-        let dir = models_dir(models_arg.as_deref(), task)?;
-        let mut models = Models::load(dips_onnx::EngineKind::Kernel, &dir, task)?;
-        let dims = task.dims();
-        let (td, d, sd, f) = (dims.floats(), dims.dim(), dims.state_dim, dims.fingers);
-        let h = dims.horizon - 1;
-        let layout = task.layout();
-        let progress = if task == Task::Screwdriver { 2 } else { 1 };
-        let limits = joint_limits(&r);
-        line(&format!("{}:", file.display()))?;
-        for run in r["mode_runs"].as_array().context("no mode_runs")? {
-            let name = run["mode"].as_str().context("mode")?;
-            let mode = TaskMode::from_name(task, name).map_err(|e| anyhow::anyhow!("{e:?}"))?;
-            let world: Vec<f64> = serde_json::from_value(run["start_state"].clone())?;
-            let end: Vec<f64> = serde_json::from_value(run["end_state"].clone())?;
-            let nq = world.len() - 3;
-            let limits = limits.as_deref().filter(|l| l.len() == nq);
-            // The world's [q, o] with o's angle as (cos, sin), the models' raw state.
-            let state: Vec<f32> = contract_state(&world).iter().map(|&v| v as f32).collect();
-            if state.len() != sd {
-                bail!(
-                    "{name}: state of {} values, the models take {sd}",
-                    state.len()
-                );
+    let setup = Setup {
+        models_arg,
+        sampler,
+        yaw_min,
+    };
+    match demos {
+        Some(dir) => {
+            if !files.is_empty() {
+                bail!("give either --demos or result files, not both");
             }
-            let mut ctx = vec![0f32; f];
-            mode.contact_mode().write_signs(&mut ctx);
-            let context: Vec<f32> = ctx.iter().copied().cycle().take(SAMPLES * f).collect();
-            let starts: Vec<f32> = state.iter().copied().cycle().take(SAMPLES * sd).collect();
-            let mut rng = KernelRng::seed_from_u64(7);
-            let out = sample_trajectories(
-                &mut models.denoiser,
-                &sampler,
-                &context,
-                &starts,
-                invariant_angle(task),
-                &mut rng,
-            )?;
-            let pose = |row: &[f32]| layout.pose(row).unwrap_or([f32::NAN; 3])[progress];
-            let wrap = |a: f32| {
-                if task == Task::Screwdriver {
-                    dips_kernel::task::wrap_angle(a)
-                } else {
-                    a
-                }
-            };
-            let mut delta = 0.0;
-            let mut jump = 0.0;
-            let mut jumps = Vec::with_capacity(SAMPLES);
-            let (mut outside, mut excess) = (0usize, 0.0f32);
-            for seg in out.chunks(td) {
-                if let Some(l) = limits {
-                    let worst = (1..=h)
-                        .flat_map(|t| (0..nq).map(move |j| (t, j)))
-                        .map(|(t, j)| {
-                            let q = seg[t * d + j];
-                            (l[j].0 - q).max(q - l[j].1).max(0.0)
-                        })
-                        .fold(0.0f32, f32::max);
-                    excess += worst;
-                    outside += usize::from(worst > 0.05);
-                }
-                delta += wrap(pose(&seg[h * d..]) - pose(seg));
-                let jmp = (0..nq)
-                    .map(|j| (seg[d + j] - seg[j]).powi(2))
-                    .sum::<f32>()
-                    .sqrt();
-                jump += jmp;
-                jumps.push(jmp);
+            let task = Task::from_name(task_arg.as_deref().unwrap_or("screwdriver"))
+                .map_err(|e| anyhow::anyhow!("--task: {e:?}"))?;
+            probe_demos(&setup, task, &dir, &filter)
+        }
+        None if files.is_empty() => bail!(
+            "usage: mode_probe [--models DIR] [--sampler S] [--guidance W] [--yaw-min RAD] \
+             (RESULT.json ... | --demos DIR [--task T] [--mode M] [--after M|start] [--below X] \
+             [--held-out] [--limit N])"
+        ),
+        None => {
+            for file in files {
+                probe_result(&setup, &file)?;
             }
-            let mut x = out.clone();
-            normalize_in_place(&models.discriminator.normalization(), &mut x);
-            let mut psi = vec![0f32; SAMPLES];
-            models
-                .discriminator
-                .p_real(SAMPLES, &x, &context, &mut psi)
-                .map_err(|e| anyhow::anyhow!("Ψ: {e:?}"))?;
-            let sum: f32 = psi.iter().sum();
-            let ess = sum * sum
-                / psi
-                    .iter()
-                    .map(|p| p * p)
-                    .sum::<f32>()
-                    .max(f32::MIN_POSITIVE);
-            let executed = end[nq + progress] - world[nq + progress];
-            let limits_note = if limits.is_some() {
-                format!(
-                    "; outside the joint limits {}/{SAMPLES} (mean excess {:.3})",
-                    outside,
-                    excess / SAMPLES as f32
-                )
+            Ok(())
+        }
+    }
+}
+
+/// Probe every executed mode of one `result.json`.
+fn probe_result(setup: &Setup, file: &Path) -> anyhow::Result<()> {
+    let text =
+        std::fs::read_to_string(file).with_context(|| format!("reading {}", file.display()))?;
+    let r: serde_json::Value = serde_json::from_str(&text)?;
+    let task = Task::from_name(r["task"].as_str().context("no task")?)
+        .map_err(|e| anyhow::anyhow!("{e:?}"))?;
+    let columns: Vec<&str> = r["state_columns"]
+        .as_array()
+        .map(|c| c.iter().filter_map(serde_json::Value::as_str).collect())
+        .unwrap_or_default();
+    let mut runs = Vec::new();
+    for run in r["mode_runs"].as_array().context("no mode_runs")? {
+        let name = run["mode"].as_str().context("mode")?;
+        runs.push(Run {
+            label: String::new(),
+            mode: TaskMode::from_name(task, name).map_err(|e| anyhow::anyhow!("{e:?}"))?,
+            start: serde_json::from_value(run["start_state"].clone())?,
+            end: serde_json::from_value(run["end_state"].clone())?,
+            data: None,
+        });
+    }
+    line(&format!("{}:", file.display()))?;
+    probe_runs(setup, task, &columns, &runs)
+}
+
+/// Probe the modes of a datagen directory's demos that `filter` selects.
+fn probe_demos(setup: &Setup, task: Task, dir: &Path, filter: &DemoFilter) -> anyhow::Result<()> {
+    let models = models_dir(setup.models_arg.as_deref(), task)?;
+    let held_out: Option<Vec<u64>> = if filter.held_out {
+        let path = models.join("train_report.json");
+        let report: serde_json::Value = serde_json::from_str(
+            &std::fs::read_to_string(&path)
+                .with_context(|| format!("reading {} (for --held-out)", path.display()))?,
+        )?;
+        Some(
+            serde_json::from_value(report["held_out_seeds"].clone())
+                .with_context(|| format!("{}: no held_out_seeds list", path.display()))?,
+        )
+    } else {
+        None
+    };
+    let ds = dips_dataset::read_dir(dir, task)?;
+    let dims = task.dims();
+    let layout = task.layout();
+    let progress = progress_index(task);
+    let nq = layout.object();
+    let limit = filter.limit.unwrap_or(DEFAULT_LIMIT);
+    let mut runs = Vec::new();
+    'demos: for demo in &ds.demos {
+        if held_out.as_ref().is_some_and(|h| !h.contains(&demo.seed)) {
+            continue;
+        }
+        let Some(outcome) = demo.outcome() else {
+            continue;
+        };
+        let Some(modes) = outcome["modes"].as_array() else {
+            continue;
+        };
+        let last = demo.first_invalid_mode().unwrap_or(usize::MAX);
+        for (i, m) in modes.iter().enumerate().take(last.saturating_add(1)) {
+            let name = m["mode"].as_str().context("a demo mode without a name")?;
+            let prev = if i == 0 {
+                "start"
             } else {
-                String::new()
+                modes[i - 1]["mode"].as_str().unwrap_or("")
             };
-            line(&format!(
-                "  {name:22} start {:+.3}: executed {:+.3}, diffused {:+.3}; first-step joint jump {:.3}{limits_note}; Ψ {:.3} (ESS {:.1}/{SAMPLES}, correlation with the jump {:+.2})",
-                world[nq + progress],
-                executed,
-                delta / SAMPLES as f32,
-                jump / SAMPLES as f32,
-                sum / SAMPLES as f32,
-                ess,
-                correlation(&jumps, &psi)
-            ))?;
+            let start: Vec<f64> = serde_json::from_value(m["start_state"].clone())?;
+            let end: Vec<f64> = serde_json::from_value(m["end_state"].clone())?;
+            if filter.mode.as_deref().is_some_and(|f| f != name)
+                || filter.after.as_deref().is_some_and(|f| f != prev)
+                || filter
+                    .below
+                    .is_some_and(|b| start.get(nq + progress).is_none_or(|&p| p >= b))
+            {
+                continue;
+            }
+            let rows: Vec<&[f32]> = (0..demo.len())
+                .filter(|&j| demo.mode_index[j] == i as i64)
+                .map(|j| demo.trajectory(j))
+                .collect();
+            let stats = segment_stats(task, dims, nq, rows.iter().copied());
+            runs.push(Run {
+                label: format!("seed {} mode {i} ", demo.seed),
+                mode: TaskMode::from_name(task, name).map_err(|e| anyhow::anyhow!("{e:?}"))?,
+                start,
+                end,
+                data: Some((stats.0, stats.1)),
+            });
+            if runs.len() >= limit {
+                break 'demos;
+            }
         }
+    }
+    if runs.is_empty() {
+        bail!("no demo mode in {} matches the filter", dir.display());
+    }
+    line(&format!("{} ({} modes):", dir.display(), runs.len()))?;
+    probe_runs(setup, task, task.state_columns(), &runs)
+}
+
+/// The pose index of the task's progress coordinate (screwdriver yaw, card y).
+fn progress_index(task: Task) -> usize {
+    if task == Task::Screwdriver { 2 } else { 1 }
+}
+
+/// Mean change of the progress coordinate (last row minus row 0) and mean first-step joint
+/// jump over segments.
+fn segment_stats<'a>(
+    task: Task,
+    dims: dips_kernel::mode::SegmentDims,
+    nq: usize,
+    segments: impl Iterator<Item = &'a [f32]>,
+) -> (f32, f32) {
+    let d = dims.dim();
+    let h = dims.horizon - 1;
+    let layout = task.layout();
+    let progress = progress_index(task);
+    let pose = |row: &[f32]| layout.pose(row).unwrap_or([f32::NAN; 3])[progress];
+    let (mut delta, mut jump, mut n) = (0.0, 0.0, 0usize);
+    for seg in segments {
+        let change = pose(&seg[h * d..]) - pose(seg);
+        delta += if task == Task::Screwdriver {
+            dips_kernel::task::wrap_angle(change)
+        } else {
+            change
+        };
+        jump += joint_jump(seg, d, nq);
+        n += 1;
+    }
+    let n = n.max(1) as f32;
+    (delta / n, jump / n)
+}
+
+/// `‖q₁ − q₀‖` of one segment.
+fn joint_jump(seg: &[f32], d: usize, nq: usize) -> f32 {
+    (0..nq)
+        .map(|j| (seg[d + j] - seg[j]).powi(2))
+        .sum::<f32>()
+        .sqrt()
+}
+
+/// Probe each run and print a line per run; with data, a summary line after them.
+fn probe_runs(
+    setup: &Setup,
+    task: Task,
+    columns: &[impl AsRef<str>],
+    runs: &[Run],
+) -> anyhow::Result<()> {
+    let dir = models_dir(setup.models_arg.as_deref(), task)?;
+    let mut models = Models::load(dips_onnx::EngineKind::Kernel, &dir, task)?;
+    let limits = joint_limits(columns);
+    let angle = invariant_angle(task).map(|mut a| {
+        if let Some(lo) = setup.yaw_min {
+            a.lo = lo;
+        }
+        a
+    });
+    let progress = progress_index(task);
+    let mut summary: Vec<(f32, f32, f32, f32, f32)> = Vec::new();
+    for run in runs {
+        let nq = run.start.len() - 3;
+        let p = probe_one(
+            &mut models,
+            &setup.sampler,
+            angle,
+            task,
+            run,
+            limits.as_deref().filter(|l| l.len() == nq),
+        )?;
+        let executed = (run.end[nq + progress] - run.start[nq + progress]) as f32;
+        let limits_note = if limits.as_ref().is_some_and(|l| l.len() == nq) {
+            format!(
+                "; outside the joint limits {}/{SAMPLES} (mean excess {:.3})",
+                p.outside, p.excess
+            )
+        } else {
+            String::new()
+        };
+        let data_note = match run.data {
+            Some((dd, dj)) => {
+                summary.push((p.delta, dd, executed, p.jump, dj));
+                format!("; data {dd:+.3}, jump {dj:.3}")
+            }
+            None => String::new(),
+        };
+        line(&format!(
+            "  {}{:22} start {:+.3}: executed {:+.3}, diffused {:+.3}; first-step joint jump {:.3}{data_note}{limits_note}; Ψ {:.3} (ESS {:.1}/{SAMPLES}, correlation with the jump {:+.2})",
+            run.label,
+            run.mode.name(),
+            run.start[nq + progress],
+            executed,
+            p.delta,
+            p.jump,
+            p.psi_mean,
+            p.ess,
+            p.psi_jump_correlation
+        ))?;
+    }
+    if !summary.is_empty() {
+        let n = summary.len() as f32;
+        let mean =
+            |f: fn(&(f32, f32, f32, f32, f32)) -> f32| summary.iter().map(f).sum::<f32>() / n;
+        let model: Vec<f32> = summary.iter().map(|s| s.0).collect();
+        let data: Vec<f32> = summary.iter().map(|s| s.1).collect();
+        line(&format!(
+            "  summary over {} modes: diffused {:+.3}, data {:+.3}, executed {:+.3}; first-step jump diffused {:.3}, data {:.3}; correlation of diffused with data {:+.2}; mean |diffused − data| {:.3}",
+            summary.len(),
+            mean(|s| s.0),
+            mean(|s| s.1),
+            mean(|s| s.2),
+            mean(|s| s.3),
+            mean(|s| s.4),
+            correlation(&model, &data),
+            mean(|s| (s.0 - s.1).abs()),
+        ))?;
     }
     Ok(())
 }
 
-/// Each joint's `(lower, upper)` limits on the Allegro hand, in the order of the result's
-/// `q_<finger>_<j>` state columns; `None` when a column does not name a joint of the hand.
-fn joint_limits(r: &serde_json::Value) -> Option<Vec<(f32, f32)>> {
-    let hand = dips_host::kinematics::HandModel::allegro_v4();
-    r["state_columns"]
-        .as_array()?
+/// Sample [`SAMPLES`] segments of `run`'s mode from its start state and measure them.
+fn probe_one(
+    models: &mut Models,
+    sampler: &SamplerConfig,
+    angle: Option<InvariantAngle>,
+    task: Task,
+    run: &Run,
+    limits: Option<&[(f32, f32)]>,
+) -> anyhow::Result<Probe> {
+    let dims = task.dims();
+    let (td, d, sd, f) = (dims.floats(), dims.dim(), dims.state_dim, dims.fingers);
+    let h = dims.horizon - 1;
+    let nq = run.start.len() - 3;
+    // The world's [q, o] with o's angle as (cos, sin), the models' raw state.
+    let state: Vec<f32> = contract_state(&run.start)
         .iter()
-        .filter_map(|c| c.as_str()?.strip_prefix("q_"))
+        .map(|&v| v as f32)
+        .collect();
+    if state.len() != sd {
+        bail!(
+            "{}: state of {} values, the models take {sd}",
+            run.mode.name(),
+            state.len()
+        );
+    }
+    let mut ctx = vec![0f32; f];
+    run.mode.contact_mode().write_signs(&mut ctx);
+    let context: Vec<f32> = ctx.iter().copied().cycle().take(SAMPLES * f).collect();
+    let starts: Vec<f32> = state.iter().copied().cycle().take(SAMPLES * sd).collect();
+    let mut rng = KernelRng::seed_from_u64(7);
+    let out = sample_trajectories(
+        &mut models.denoiser,
+        sampler,
+        &context,
+        &starts,
+        angle,
+        &mut rng,
+    )?;
+    let (delta, jump) = segment_stats(task, dims, nq, out.chunks(td));
+    let jumps: Vec<f32> = out.chunks(td).map(|s| joint_jump(s, d, nq)).collect();
+    let (mut outside, mut excess) = (0usize, 0.0f32);
+    if let Some(l) = limits {
+        for seg in out.chunks(td) {
+            let worst = (1..=h)
+                .flat_map(|t| (0..nq).map(move |j| (t, j)))
+                .map(|(t, j)| {
+                    let q = seg[t * d + j];
+                    (l[j].0 - q).max(q - l[j].1).max(0.0)
+                })
+                .fold(0.0f32, f32::max);
+            excess += worst;
+            outside += usize::from(worst > 0.05);
+        }
+    }
+    let mut x = out.clone();
+    normalize_in_place(&models.discriminator.normalization(), &mut x);
+    let mut psi = vec![0f32; SAMPLES];
+    models
+        .discriminator
+        .p_real(SAMPLES, &x, &context, &mut psi)
+        .map_err(|e| anyhow::anyhow!("Ψ: {e:?}"))?;
+    let sum: f32 = psi.iter().sum();
+    let ess = sum * sum
+        / psi
+            .iter()
+            .map(|p| p * p)
+            .sum::<f32>()
+            .max(f32::MIN_POSITIVE);
+    Ok(Probe {
+        delta,
+        jump,
+        outside,
+        excess: excess / SAMPLES as f32,
+        psi_mean: sum / SAMPLES as f32,
+        ess,
+        psi_jump_correlation: correlation(&jumps, &psi),
+    })
+}
+
+/// Each joint's `(lower, upper)` limits on the Allegro hand, in the order of the state's
+/// `q_<finger>_<j>` columns; `None` when a column does not name a joint of the hand.
+fn joint_limits(columns: &[impl AsRef<str>]) -> Option<Vec<(f32, f32)>> {
+    let hand = dips_host::kinematics::HandModel::allegro_v4();
+    columns
+        .iter()
+        .filter_map(|c| c.as_ref().strip_prefix("q_"))
         .map(|c| {
             let (finger, j) = c.rsplit_once('_')?;
             let finger = dips_host::kinematics::Finger::from_name(finger)?;
