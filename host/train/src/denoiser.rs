@@ -112,6 +112,13 @@ pub fn net_dims(dims: SegmentDims) -> NetDims {
     }
 }
 
+/// The min-SNR-γ weight of the ε loss at a step with cumulative signal `alpha_bar`:
+/// `min(SNR, γ) / SNR` with `SNR = ᾱ / (1 − ᾱ)` (1 wherever `SNR ≤ γ`).
+pub(crate) fn min_snr_weight(alpha_bar: f32, gamma: f32) -> f32 {
+    let snr = alpha_bar / (1.0 - alpha_bar).max(f32::MIN_POSITIVE);
+    if snr <= gamma { 1.0 } else { gamma / snr }
+}
+
 /// A fingerprint of training data (FNV-1a over the float bits), stored in checkpoints.
 pub(crate) fn fingerprint(parts: &[&[f32]]) -> String {
     let mut h: u64 = 0xcbf2_9ce4_8422_2325;
@@ -337,6 +344,13 @@ pub fn train_denoiser(
             s.start_row(),
             &mut rng,
         );
+        if let Some(gamma) = s.min_snr_gamma {
+            let td = dims.floats();
+            for (w, &t) in nb.weight.chunks_exact_mut(td).zip(&nb.t) {
+                let scale = min_snr_weight(alpha_bar[t as usize], gamma);
+                w.iter_mut().for_each(|v| *v *= scale);
+            }
+        }
         if s.object_loss_weight != 1.0 {
             for row in nb.weight.chunks_exact_mut(d) {
                 for w in &mut row[object_cols.clone()] {
@@ -427,4 +441,18 @@ pub fn train_denoiser(
         diffusion_steps: s.diffusion_steps,
         report,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::min_snr_weight;
+
+    #[test]
+    fn min_snr_weight_caps_the_clean_steps_only() {
+        // ᾱ = 0.5: SNR 1 ≤ γ, full weight; ᾱ = 0.99: SNR 99, weight γ / 99.
+        assert_eq!(min_snr_weight(0.5, 5.0), 1.0);
+        assert!((min_snr_weight(0.99, 5.0) - 5.0 / 99.0).abs() < 1e-4);
+        assert_eq!(min_snr_weight(0.01, 5.0), 1.0);
+        assert!(min_snr_weight(1.0, 5.0).is_finite());
+    }
 }

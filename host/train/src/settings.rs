@@ -80,6 +80,13 @@ pub struct DenoiserSettings {
     /// the spec's masks do, so a given start row never looks like the planner's.
     #[serde(default, skip_serializing_if = "std::ops::Not::not")]
     pub start_state_only: bool,
+    /// Min-SNR-γ loss weighting (Hang et al., 2023): a training trajectory noised to step `t`
+    /// has its ε loss weighted by `min(SNR_t, γ) / SNR_t`, `SNR_t = ᾱ_t / (1 − ᾱ_t)`, which
+    /// caps the weight the nearly clean steps get in the x₀ error the ε loss stands for and so
+    /// leaves more of the fit to the noisy steps, where a sample's global shape (its motion
+    /// from the inpainted start) is decided. `None`, the default, is the plain ε loss.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub min_snr_gamma: Option<f32>,
     /// Train the Diffusion Policy baseline instead of `M(c, s₀)`: trajectories are windows of
     /// a demo's executed rows concatenated across its modes ([`crate::data::policy_windows`]),
     /// with no contact-mode input (the context is zero). Only the denoiser is trained.
@@ -110,6 +117,7 @@ impl Default for DenoiserSettings {
             object_loss_weight: 10.0,
             start_given: default_start_given(),
             start_state_only: false,
+            min_snr_gamma: None,
             policy: false,
         }
     }
@@ -323,6 +331,9 @@ impl TrainSettings {
                 "denoiser.object_loss_weight",
                 "must be positive and finite",
             ));
+        }
+        if d.min_snr_gamma.is_some_and(|g| !(g.is_finite() && g > 0.0)) {
+            return Err(bad("denoiser.min_snr_gamma", "must be positive and finite"));
         }
         if !(0.0..=1.0).contains(&d.start_given) {
             return Err(bad("denoiser.start_given", "must be in [0, 1]"));

@@ -79,6 +79,27 @@ fn training_lowers_the_held_out_loss() {
     std::fs::remove_dir_all(&dir).unwrap();
 }
 
+#[test]
+fn min_snr_weighting_trains_and_changes_the_fit() {
+    let (dir, ds) = dataset(Task::Card, "min-snr", 10);
+    let mut s = tiny(Task::Card);
+    s.net.widths = vec![16, 32];
+    s.denoiser.steps = 250;
+    let plain = train_denoiser(&ds, &s, &dir.join("plain"), &RunOptions::default()).unwrap();
+    s.denoiser.min_snr_gamma = Some(5.0);
+    let weighted = train_denoiser(&ds, &s, &dir.join("weighted"), &RunOptions::default()).unwrap();
+    let (init, fin) = (
+        weighted.report.held_out_loss_initial.unwrap(),
+        weighted.report.held_out_loss.unwrap(),
+    );
+    assert!(fin < 0.85 * init, "held-out loss {init} → {fin}");
+    assert_ne!(
+        plain.report.held_out_loss, weighted.report.held_out_loss,
+        "the weighting must change what is learnt"
+    );
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
 /// Train tiny models and check their exports on tract and the kernel against burn;
 /// `start_embed_dim` > 0 also trains with state-only start rows.
 fn check_export(task: Task, start_embed_dim: usize) {
@@ -215,6 +236,13 @@ fn bad_settings_and_bad_files_are_typed_errors() {
     let mut s = TrainSettings::default();
     s.denoiser.lr = f64::NAN;
     assert!(matches!(s.validate(), Err(TrainError::Settings { .. })));
+    let mut s = TrainSettings::default();
+    s.denoiser.min_snr_gamma = Some(-1.0);
+    let e = s.validate().unwrap_err();
+    assert!(
+        matches!(&e, TrainError::Settings { field, .. } if field == "denoiser.min_snr_gamma"),
+        "{e}"
+    );
     let s = TrainSettings {
         held_out_fraction: 1.0,
         ..TrainSettings::default()
