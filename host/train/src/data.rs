@@ -131,8 +131,8 @@ pub struct Normalizer {
 
 impl Normalizer {
     /// Mean and std per column over every row of `s` (in `f64`); cos/sin columns get mean 0,
-    /// std 1; every std is at least `std_floor`.
-    pub fn fit(s: &Samples, task: Task, std_floor: f32) -> Result<Self> {
+    /// std 1 unless `normalize_angles`; every std is at least `std_floor`.
+    pub fn fit(s: &Samples, task: Task, std_floor: f32, normalize_angles: bool) -> Result<Self> {
         let d = task.dims().dim();
         let rows = s.x.len() / d.max(1);
         if rows == 0 {
@@ -158,7 +158,12 @@ impl Normalizer {
                 ((q / n - m * m).max(0.0).sqrt() as f32).max(std_floor)
             })
             .collect();
-        for (c, s_) in angle_columns(task) {
+        let raw_angles = if normalize_angles {
+            Vec::new()
+        } else {
+            angle_columns(task)
+        };
+        for (c, s_) in raw_angles {
             for j in [c, s_] {
                 mean[j] = 0.0;
                 std[j] = 1.0;

@@ -264,7 +264,7 @@ pub fn train_denoiser(
     let task = ds.task;
     let dims = ds.dims();
     let (train, held) = split_samples(ds, settings)?;
-    let norm = Normalizer::fit(&train, task, settings.std_floor)?;
+    let norm = Normalizer::fit(&train, task, settings.std_floor, settings.normalize_angles)?;
     let s = &settings.denoiser;
     let mut alpha_bar = vec![0f32; s.diffusion_steps];
     fill_alpha_bar(s.diffusion_steps, &mut alpha_bar);

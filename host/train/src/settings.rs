@@ -216,6 +216,13 @@ pub struct TrainSettings {
     /// Default false (every trajectory).
     #[serde(default, skip_serializing_if = "std::ops::Not::not")]
     pub drop_modes_after_invalid: bool,
+    /// Z-score the cos/sin columns of angles like every other column. `false`, the default,
+    /// leaves them raw (mean 0, std 1) as the spec does, which suits data whose angles cover
+    /// the circle (yaw augmentation); without it the screwdriver's cos/sin yaw vary with a std
+    /// of about 0.3, a third of every z-scored column's, and the noise buries the object's
+    /// turn earliest of all columns.
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub normalize_angles: bool,
 }
 
 impl Default for TrainSettings {
@@ -231,6 +238,7 @@ impl Default for TrainSettings {
             discriminator: DiscriminatorSettings::default(),
             prior_sources: None,
             drop_modes_after_invalid: false,
+            normalize_angles: false,
         }
     }
 }
