@@ -23,7 +23,8 @@
 //! diffused segments (the model's start consistency), the share of segments with a joint more
 //! than 0.05 rad outside the Allegro hand's limits after row 0 and the mean of their largest
 //! excess (rad), and Ψ's mean score, its effective sample size over the 64 and its correlation
-//! with the segments' first-step jumps.
+//! with the segments' first-step jumps. `--profile` adds the mean change of the progress
+//! coordinate at every row (diffused, and the data's with `--demos`).
 //!
 //! ```sh
 //! cargo run --release -p dips-cli --example mode_probe -- \
@@ -82,14 +83,13 @@ struct Run {
     /// World state `[q, o]` at the mode's start and end (object angle in radians).
     start: Vec<f64>,
     end: Vec<f64>,
-    /// The demo's own trajectories of this mode: mean change of progress and first-step jump.
-    data: Option<(f32, f32)>,
+    /// The demo's own trajectories of this mode.
+    data: Option<SegmentStats>,
 }
 
 /// What the models make of one start state.
 struct Probe {
-    delta: f32,
-    jump: f32,
+    stats: SegmentStats,
     outside: usize,
     excess: f32,
     psi_mean: f32,
@@ -102,6 +102,8 @@ struct Setup {
     models_arg: Option<PathBuf>,
     sampler: SamplerConfig,
     yaw_min: Option<f32>,
+    /// Print the mean change of the progress coordinate at every row.
+    profile: bool,
 }
 
 fn probe() -> anyhow::Result<()> {
@@ -110,6 +112,7 @@ fn probe() -> anyhow::Result<()> {
     let mut sampler_arg = dips_cli::search_args::DEFAULT_SAMPLER.to_string();
     let mut guidance: Option<f32> = None;
     let mut yaw_min: Option<f32> = None;
+    let mut profile = false;
     let mut demos: Option<PathBuf> = None;
     let mut task_arg: Option<String> = None;
     let mut filter = DemoFilter::default();
@@ -128,6 +131,7 @@ fn probe() -> anyhow::Result<()> {
             "--below" => filter.below = Some(value("a progress value")?.parse()?),
             "--limit" => filter.limit = Some(value("a count")?.parse()?),
             "--held-out" => filter.held_out = true,
+            "--profile" => profile = true,
             _ if a.starts_with("--") => bail!("unknown option {a}"),
             _ => files.push(PathBuf::from(a)),
         }
@@ -140,6 +144,7 @@ fn probe() -> anyhow::Result<()> {
         models_arg,
         sampler,
         yaw_min,
+        profile,
     };
     match demos {
         Some(dir) => {
@@ -151,7 +156,7 @@ fn probe() -> anyhow::Result<()> {
             probe_demos(&setup, task, &dir, &filter)
         }
         None if files.is_empty() => bail!(
-            "usage: mode_probe [--models DIR] [--sampler S] [--guidance W] [--yaw-min RAD] \
+            "usage: mode_probe [--models DIR] [--sampler S] [--guidance W] [--yaw-min RAD] [--profile] \
              (RESULT.json ... | --demos DIR [--task T] [--mode M] [--after M|start] [--below X] \
              [--held-out] [--limit N])"
         ),
@@ -251,7 +256,7 @@ fn probe_demos(setup: &Setup, task: Task, dir: &Path, filter: &DemoFilter) -> an
                 mode: TaskMode::from_name(task, name).map_err(|e| anyhow::anyhow!("{e:?}"))?,
                 start,
                 end,
-                data: Some((stats.0, stats.1)),
+                data: Some(stats),
             });
             if runs.len() >= limit {
                 break 'demos;
@@ -270,32 +275,47 @@ fn progress_index(task: Task) -> usize {
     if task == Task::Screwdriver { 2 } else { 1 }
 }
 
-/// Mean change of the progress coordinate (last row minus row 0) and mean first-step joint
-/// jump over segments.
+/// Mean change of the progress coordinate (last row minus row 0), mean first-step joint
+/// jump, and the mean change at every row (the profile), over segments.
 fn segment_stats<'a>(
     task: Task,
     dims: dips_kernel::mode::SegmentDims,
     nq: usize,
     segments: impl Iterator<Item = &'a [f32]>,
-) -> (f32, f32) {
+) -> SegmentStats {
     let d = dims.dim();
-    let h = dims.horizon - 1;
     let layout = task.layout();
     let progress = progress_index(task);
     let pose = |row: &[f32]| layout.pose(row).unwrap_or([f32::NAN; 3])[progress];
-    let (mut delta, mut jump, mut n) = (0.0, 0.0, 0usize);
+    let mut profile = vec![0.0f32; dims.horizon];
+    let (mut jump, mut n) = (0.0, 0usize);
     for seg in segments {
-        let change = pose(&seg[h * d..]) - pose(seg);
-        delta += if task == Task::Screwdriver {
-            dips_kernel::task::wrap_angle(change)
-        } else {
-            change
-        };
+        let start = pose(seg);
+        for (r, p) in profile.iter_mut().enumerate() {
+            let change = pose(&seg[r * d..]) - start;
+            *p += if task == Task::Screwdriver {
+                dips_kernel::task::wrap_angle(change)
+            } else {
+                change
+            };
+        }
         jump += joint_jump(seg, d, nq);
         n += 1;
     }
     let n = n.max(1) as f32;
-    (delta / n, jump / n)
+    profile.iter_mut().for_each(|p| *p /= n);
+    SegmentStats {
+        delta: profile.last().copied().unwrap_or(f32::NAN),
+        jump: jump / n,
+        profile,
+    }
+}
+
+/// What [`segment_stats`] measures.
+struct SegmentStats {
+    delta: f32,
+    jump: f32,
+    profile: Vec<f32>,
 }
 
 /// `‖q₁ − q₀‖` of one segment.
@@ -343,10 +363,10 @@ fn probe_runs(
         } else {
             String::new()
         };
-        let data_note = match run.data {
-            Some((dd, dj)) => {
-                summary.push((p.delta, dd, executed, p.jump, dj));
-                format!("; data {dd:+.3}, jump {dj:.3}")
+        let data_note = match &run.data {
+            Some(data) => {
+                summary.push((p.stats.delta, data.delta, executed, p.stats.jump, data.jump));
+                format!("; data {:+.3}, jump {:.3}", data.delta, data.jump)
             }
             None => String::new(),
         };
@@ -356,12 +376,24 @@ fn probe_runs(
             run.mode.name(),
             run.start[nq + progress],
             executed,
-            p.delta,
-            p.jump,
+            p.stats.delta,
+            p.stats.jump,
             p.psi_mean,
             p.ess,
             p.psi_jump_correlation
         ))?;
+        if setup.profile {
+            line(&format!(
+                "    profile, diffused: {}",
+                fmt_profile(&p.stats.profile)
+            ))?;
+            if let Some(data) = &run.data {
+                line(&format!(
+                    "    profile, data:     {}",
+                    fmt_profile(&data.profile)
+                ))?;
+            }
+        }
     }
     if !summary.is_empty() {
         let n = summary.len() as f32;
@@ -382,6 +414,15 @@ fn probe_runs(
         ))?;
     }
     Ok(())
+}
+
+/// A profile's values, 3 decimals each.
+fn fmt_profile(profile: &[f32]) -> String {
+    profile
+        .iter()
+        .map(|v| format!("{v:+.3}"))
+        .collect::<Vec<_>>()
+        .join(" ")
 }
 
 /// Sample [`SAMPLES`] segments of `run`'s mode from its start state and measure them.
@@ -422,7 +463,7 @@ fn probe_one(
         angle,
         &mut rng,
     )?;
-    let (delta, jump) = segment_stats(task, dims, nq, out.chunks(td));
+    let stats = segment_stats(task, dims, nq, out.chunks(td));
     let jumps: Vec<f32> = out.chunks(td).map(|s| joint_jump(s, d, nq)).collect();
     let (mut outside, mut excess) = (0usize, 0.0f32);
     if let Some(l) = limits {
@@ -453,8 +494,7 @@ fn probe_one(
             .sum::<f32>()
             .max(f32::MIN_POSITIVE);
     Ok(Probe {
-        delta,
-        jump,
+        stats,
         outside,
         excess: excess / SAMPLES as f32,
         psi_mean: sum / SAMPLES as f32,
