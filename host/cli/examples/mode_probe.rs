@@ -16,9 +16,9 @@
 //!   states, and the mean absolute difference.
 //!
 //! From each start state it samples 64 segments of the mode as the planner does (`--sampler`,
-//! default `dips_cli::search_args::DEFAULT_SAMPLER`, the task's invariant angle; `--guidance W`
-//! and `--yaw-min RAD` change the guidance weight and the lowest start yaw the models are
-//! asked about) and prints: the executed and the mean diffused change of the task's progress
+//! default `dips_cli::search_args::DEFAULT_SAMPLER`, the task's invariant angle; `--guidance W`,
+//! `--noise-factor F` and `--yaw-min RAD` change the guidance weight, DDPM's noise factor and
+//! the lowest start yaw the models are asked about) and prints: the executed and the mean diffused change of the task's progress
 //! coordinate (yaw in rad, card y in m), the mean first-step joint jump `‖q₁ − q₀‖` of the
 //! diffused segments (the model's start consistency), the share of segments with a joint more
 //! than 0.05 rad outside the Allegro hand's limits after row 0 and the mean of their largest
@@ -111,6 +111,7 @@ fn probe() -> anyhow::Result<()> {
     let mut models_arg = None;
     let mut sampler_arg = dips_cli::search_args::DEFAULT_SAMPLER.to_string();
     let mut guidance: Option<f32> = None;
+    let mut noise: Option<f32> = None;
     let mut yaw_min: Option<f32> = None;
     let mut profile = false;
     let mut demos: Option<PathBuf> = None;
@@ -123,6 +124,7 @@ fn probe() -> anyhow::Result<()> {
             "--models" => models_arg = Some(PathBuf::from(value("a directory")?)),
             "--sampler" => sampler_arg = value("a sampler, e.g. ddpm or ddim:16")?,
             "--guidance" => guidance = Some(value("a weight")?.parse()?),
+            "--noise-factor" => noise = Some(value("a factor")?.parse()?),
             "--yaw-min" => yaw_min = Some(value("an angle in radians")?.parse()?),
             "--demos" => demos = Some(PathBuf::from(value("a datagen directory")?)),
             "--task" => task_arg = Some(value("a task name")?),
@@ -140,6 +142,16 @@ fn probe() -> anyhow::Result<()> {
     if let Some(w) = guidance {
         sampler.guidance_weight = w;
     }
+    if let Some(f) = noise {
+        use dips_kernel::diffusion::SamplingMethod;
+        match &mut sampler.method {
+            SamplingMethod::Ddpm { noise_factor }
+            | SamplingMethod::DdpmStrided { noise_factor, .. } => {
+                *noise_factor = f;
+            }
+            SamplingMethod::Ddim { .. } => bail!("--noise-factor applies to DDPM samplers only"),
+        }
+    }
     let setup = Setup {
         models_arg,
         sampler,
@@ -156,7 +168,8 @@ fn probe() -> anyhow::Result<()> {
             probe_demos(&setup, task, &dir, &filter)
         }
         None if files.is_empty() => bail!(
-            "usage: mode_probe [--models DIR] [--sampler S] [--guidance W] [--yaw-min RAD] [--profile] \
+            "usage: mode_probe [--models DIR] [--sampler S] [--guidance W] [--noise-factor F] [--yaw-min RAD] \
+             [--profile] \
              (RESULT.json ... | --demos DIR [--task T] [--mode M] [--after M|start] [--below X] \
              [--held-out] [--limit N])"
         ),
