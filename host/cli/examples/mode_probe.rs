@@ -205,7 +205,8 @@ fn probe_result(setup: &Setup, file: &Path) -> anyhow::Result<()> {
         });
     }
     line(&format!("{}:", file.display()))?;
-    probe_runs(setup, task, &columns, &runs)
+    let dir = models_dir(setup.models_arg.as_deref(), task)?;
+    probe_runs(setup, task, &dir, &columns, &runs)
 }
 
 /// Probe the modes of a datagen directory's demos that `filter` selects.
@@ -280,7 +281,7 @@ fn probe_demos(setup: &Setup, task: Task, dir: &Path, filter: &DemoFilter) -> an
         bail!("no demo mode in {} matches the filter", dir.display());
     }
     line(&format!("{} ({} modes):", dir.display(), runs.len()))?;
-    probe_runs(setup, task, task.state_columns(), &runs)
+    probe_runs(setup, task, &models, task.state_columns(), &runs)
 }
 
 /// The pose index of the task's progress coordinate (screwdriver yaw, card y).
@@ -343,11 +344,11 @@ fn joint_jump(seg: &[f32], d: usize, nq: usize) -> f32 {
 fn probe_runs(
     setup: &Setup,
     task: Task,
+    models_dir: &Path,
     columns: &[impl AsRef<str>],
     runs: &[Run],
 ) -> anyhow::Result<()> {
-    let dir = models_dir(setup.models_arg.as_deref(), task)?;
-    let mut models = Models::load(dips_onnx::EngineKind::Kernel, &dir, task)?;
+    let mut models = Models::load(dips_onnx::EngineKind::Kernel, models_dir, task)?;
     let limits = joint_limits(columns);
     let angle = invariant_angle(task).map(|mut a| {
         if let Some(lo) = setup.yaw_min {
@@ -359,16 +360,10 @@ fn probe_runs(
     let mut summary: Vec<(f32, f32, f32, f32, f32)> = Vec::new();
     for run in runs {
         let nq = run.start.len() - 3;
-        let p = probe_one(
-            &mut models,
-            &setup.sampler,
-            angle,
-            task,
-            run,
-            limits.as_deref().filter(|l| l.len() == nq),
-        )?;
+        let run_limits = limits.as_deref().filter(|l| l.len() == nq);
+        let p = probe_one(&mut models, &setup.sampler, angle, task, run, run_limits)?;
         let executed = (run.end[nq + progress] - run.start[nq + progress]) as f32;
-        let limits_note = if limits.as_ref().is_some_and(|l| l.len() == nq) {
+        let limits_note = if run_limits.is_some() {
             format!(
                 "; outside the joint limits {}/{SAMPLES} (mean excess {:.3})",
                 p.outside, p.excess
