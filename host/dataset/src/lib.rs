@@ -160,6 +160,24 @@ impl DemoRecord {
             return 0;
         };
         let keep: Vec<bool> = self.mode_index.iter().map(|&m| m <= last as i64).collect();
+        let dropped = self.retain(&keep);
+        if dropped > 0 {
+            self.modes.truncate(last + 1);
+        }
+        dropped
+    }
+
+    /// Keep only the trajectories recorded at online step `k ≥ min_step` of their mode: the
+    /// first `k` rows of such a trajectory are what the world executed (`docs/datagen.md`),
+    /// the rest the particle's plan from there. Returns the number of trajectories dropped.
+    pub fn keep_steps_from(&mut self, min_step: usize) -> usize {
+        let min = i64::try_from(min_step).unwrap_or(i64::MAX);
+        let keep: Vec<bool> = self.step.iter().map(|&k| k >= min).collect();
+        self.retain(&keep)
+    }
+
+    /// Keep trajectory `i` where `keep[i]`; the number dropped.
+    fn retain(&mut self, keep: &[bool]) -> usize {
         let dropped = keep.iter().filter(|k| !**k).count();
         if dropped == 0 {
             return 0;
@@ -174,12 +192,11 @@ impl DemoRecord {
                     .flat_map(|(c, _)| c.iter().copied()),
             );
         }
-        retain(&mut self.trajectories, &keep, floats);
-        retain(&mut self.contexts, &keep, fingers);
-        retain(&mut self.mode_index, &keep, 1);
-        retain(&mut self.step, &keep, 1);
-        retain(&mut self.particle, &keep, 1);
-        self.modes.truncate(last + 1);
+        retain(&mut self.trajectories, keep, floats);
+        retain(&mut self.contexts, keep, fingers);
+        retain(&mut self.mode_index, keep, 1);
+        retain(&mut self.step, keep, 1);
+        retain(&mut self.particle, keep, 1);
         dropped
     }
 
@@ -585,6 +602,14 @@ impl Dataset {
             .sum()
     }
 
+    /// [`DemoRecord::keep_steps_from`] on every demo; the trajectories dropped.
+    pub fn keep_steps_from(&mut self, min_step: usize) -> usize {
+        self.demos
+            .iter_mut()
+            .map(|d| d.keep_steps_from(min_step))
+            .sum()
+    }
+
     /// Trajectories over all demos.
     pub fn samples(&self) -> usize {
         self.demos.iter().map(DemoRecord::len).sum()
@@ -794,5 +819,26 @@ mod invalid_mode_tests {
             assert_eq!(d.drop_modes_after_invalid(), 0);
             assert_eq!(d.len(), 6);
         }
+    }
+
+    /// Only the trajectories of online step ≥ the bound stay, with every per-trajectory
+    /// array and the modes' names; a bound of 0 keeps all, one past the last step keeps none.
+    #[test]
+    fn early_steps_are_dropped() {
+        let mut d = demo(None);
+        let dims = d.task.dims();
+        assert_eq!(d.keep_steps_from(0), 0);
+        assert_eq!(d.keep_steps_from(1), 3);
+        assert_eq!(d.len(), 3);
+        assert_eq!(d.mode_index, [0, 1, 2]);
+        assert_eq!(d.step, [1, 1, 1]);
+        assert_eq!(d.particle, [0, 0, 0]);
+        assert_eq!(d.modes, ["index", "middle", "both"]);
+        let first: Vec<f32> = (0..3).map(|i| d.trajectory(i)[0]).collect();
+        assert_eq!(first, [1.0, 3.0, 5.0]);
+        assert_eq!(d.contexts.len(), 3 * dims.fingers);
+        d.check().unwrap();
+        assert_eq!(d.keep_steps_from(2), 3);
+        assert!(d.is_empty());
     }
 }

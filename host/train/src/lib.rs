@@ -62,6 +62,9 @@ pub struct TrainReport {
     /// Trajectories left out because their mode followed the object's fall
     /// ([`TrainSettings::drop_modes_after_invalid`]).
     pub dropped_after_invalid: usize,
+    /// Trajectories left out because they were recorded before online step
+    /// [`TrainSettings::min_executed_rows`] of their mode.
+    pub dropped_early_steps: usize,
     /// Seeds of the held-out demos.
     pub held_out_seeds: Vec<u64>,
     /// The settings.
@@ -94,6 +97,9 @@ pub struct PolicyReport {
     /// Trajectories left out because their mode followed the object's fall
     /// ([`TrainSettings::drop_modes_after_invalid`]).
     pub dropped_after_invalid: usize,
+    /// Trajectories left out because they were recorded before online step
+    /// [`TrainSettings::min_executed_rows`] of their mode.
+    pub dropped_early_steps: usize,
     /// Seeds of the held-out demos.
     pub held_out_seeds: Vec<u64>,
     /// The settings.
@@ -121,7 +127,7 @@ pub fn run_policy(
     let mut settings = settings.clone();
     settings.denoiser.policy = true;
     settings.validate()?;
-    let (ds, dropped_after_invalid) = read_dataset(task, data_dir, &settings)?;
+    let (ds, dropped) = read_dataset(task, data_dir, &settings)?;
     std::fs::create_dir_all(out_dir).map_err(io_err(out_dir))?;
     let den = train_denoiser(&ds, &settings, out_dir, opts)?;
     export_denoiser(&den, &out_dir.join(DENOISER_FILE))?;
@@ -132,7 +138,8 @@ pub fn run_policy(
         data_dir: data_dir.to_path_buf(),
         demos: ds.demos.len(),
         windows: ds.demos.iter().map(|d| data::policy_windows(d).1).sum(),
-        dropped_after_invalid,
+        dropped_after_invalid: dropped.after_invalid,
+        dropped_early_steps: dropped.early_steps,
         held_out_seeds: split.held_out.iter().map(|&i| ds.demos[i].seed).collect(),
         settings: settings.clone(),
         denoiser: den.report.clone(),
@@ -158,19 +165,42 @@ pub fn export_discriminator(d: &TrainedDiscriminator, path: &Path) -> Result<dip
     export::write_model(path, &d.onnx()?)
 }
 
+/// Trajectories [`read_dataset`] left out, by reason.
+#[derive(Debug, Clone, Copy, Default)]
+struct Dropped {
+    after_invalid: usize,
+    early_steps: usize,
+}
+
 /// Read the dataset in `data_dir` as `settings` ask (the modes after an object's fall left
-/// out when [`TrainSettings::drop_modes_after_invalid`]); also the trajectories left out.
+/// out when [`TrainSettings::drop_modes_after_invalid`], the early steps' trajectories when
+/// [`TrainSettings::min_executed_rows`]); also the trajectories left out.
 fn read_dataset(
     task: Task,
     data_dir: &Path,
     settings: &TrainSettings,
-) -> Result<(dips_dataset::Dataset, usize)> {
+) -> Result<(dips_dataset::Dataset, Dropped)> {
     let mut ds = dips_dataset::read_dir(data_dir, task)?;
-    let dropped = if settings.drop_modes_after_invalid {
-        ds.drop_modes_after_invalid()
-    } else {
-        0
-    };
+    let mut dropped = Dropped::default();
+    if settings.drop_modes_after_invalid {
+        dropped.after_invalid = ds.drop_modes_after_invalid();
+    }
+    if settings.min_executed_rows > 0 {
+        let last = ds.demos.iter().flat_map(|d| d.step.iter().copied()).max();
+        dropped.early_steps = ds.keep_steps_from(settings.min_executed_rows);
+        if ds.samples() == 0 {
+            return Err(TrainError::Settings {
+                field: "min_executed_rows".into(),
+                reason: format!(
+                    "{} keeps no trajectory: the demos in {} record online steps 0 to {} \
+                     (allowed: 0 to the last of them)",
+                    settings.min_executed_rows,
+                    data_dir.display(),
+                    last.map_or("none".to_string(), |k| k.to_string()),
+                ),
+            });
+        }
+    }
     Ok((ds, dropped))
 }
 
@@ -185,7 +215,7 @@ pub fn run(
     opts: &RunOptions,
 ) -> Result<TrainReport> {
     settings.validate()?;
-    let (ds, dropped_after_invalid) = read_dataset(task, data_dir, settings)?;
+    let (ds, dropped) = read_dataset(task, data_dir, settings)?;
     std::fs::create_dir_all(out_dir).map_err(io_err(out_dir))?;
     let prior = match &settings.prior_sources {
         None => dips_dataset::PriorFile::fit(&ds, PRIOR_P_MIN)?,
@@ -204,7 +234,8 @@ pub fn run(
         data_dir: data_dir.to_path_buf(),
         demos: ds.demos.len(),
         samples: ds.samples(),
-        dropped_after_invalid,
+        dropped_after_invalid: dropped.after_invalid,
+        dropped_early_steps: dropped.early_steps,
         held_out_seeds: split.held_out.iter().map(|&i| ds.demos[i].seed).collect(),
         settings: settings.clone(),
         denoiser: den.report.clone(),

@@ -223,6 +223,15 @@ pub struct TrainSettings {
     /// turn earliest of all columns.
     #[serde(default, skip_serializing_if = "std::ops::Not::not")]
     pub normalize_angles: bool,
+    /// Train on the trajectories recorded at online step `k ≥` this of their mode only: their
+    /// first `k` rows are what the world executed, the rest the particle's plan from there
+    /// (`docs/datagen.md`). 0, the default, keeps every step, so most trajectories are plans
+    /// made early in a mode, which on the screwdriver overstate late turns and understate
+    /// first ones against what the world gives. The task's horizon minus one keeps the last
+    /// step's: the executed mode with one planned row. Must leave a trajectory (checked
+    /// against the data).
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub min_executed_rows: usize,
 }
 
 impl Default for TrainSettings {
@@ -239,6 +248,7 @@ impl Default for TrainSettings {
             prior_sources: None,
             drop_modes_after_invalid: false,
             normalize_angles: false,
+            min_executed_rows: 0,
         }
     }
 }

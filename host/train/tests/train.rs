@@ -307,6 +307,40 @@ fn run_writes_the_model_directory() {
     .unwrap();
     assert_eq!(r.demos, 5);
     assert_eq!(r.prior.sequences, 5);
+    assert_eq!(r.dropped_early_steps, 0);
+    let all = r.samples;
+    // The demos record online steps 0 and 1: 1 keeps step 1's half, 2 keeps nothing and
+    // says which steps there are.
+    let past = TrainSettings {
+        min_executed_rows: 2,
+        ..s.clone()
+    };
+    let e = dips_train::run(
+        Task::Card,
+        &dir.join("data"),
+        &out,
+        &past,
+        &RunOptions::default(),
+    )
+    .unwrap_err();
+    assert!(
+        matches!(&e, TrainError::Settings { field, .. } if field == "min_executed_rows")
+            && e.to_string().contains("steps 0 to 1"),
+        "{e}"
+    );
+    let executed = TrainSettings {
+        min_executed_rows: 1,
+        ..s.clone()
+    };
+    let r = dips_train::run(
+        Task::Card,
+        &dir.join("data"),
+        &dir.join("models-executed"),
+        &executed,
+        &RunOptions::default(),
+    )
+    .unwrap();
+    assert_eq!((r.samples, r.dropped_early_steps), (all / 2, all / 2));
     for f in ["denoiser.onnx", "discriminator.onnx", "train_report.json"] {
         assert!(out.join(f).is_file(), "{f}");
     }
