@@ -281,30 +281,20 @@ fn run_writes_the_model_directory() {
     s.denoiser.steps = 10;
     s.discriminator.steps = 5;
     let out = dir.join("models");
+    let data = dir.join("data");
+    let run = |out: &std::path::Path, s: &TrainSettings| {
+        dips_train::run(Task::Card, &data, out, s, &RunOptions::default())
+    };
     // The prior is fitted from the chosen sources' demos only: these demos carry no source
     // (pattern), so a markov-only prior has nothing to fit and says so before training.
     let markov_only = TrainSettings {
         prior_sources: Some(vec!["markov".to_string()]),
         ..s.clone()
     };
-    let e = dips_train::run(
-        Task::Card,
-        &dir.join("data"),
-        &out,
-        &markov_only,
-        &RunOptions::default(),
-    )
-    .unwrap_err();
+    let e = run(&out, &markov_only).unwrap_err();
     assert!(e.to_string().contains("no demo of the 5 demos"), "{e}");
     s.prior_sources = Some(vec!["pattern".to_string(), "markov".to_string()]);
-    let r = dips_train::run(
-        Task::Card,
-        &dir.join("data"),
-        &out,
-        &s,
-        &RunOptions::default(),
-    )
-    .unwrap();
+    let r = run(&out, &s).unwrap();
     assert_eq!(r.demos, 5);
     assert_eq!(r.prior.sequences, 5);
     assert_eq!(r.dropped_early_steps, 0);
@@ -315,14 +305,7 @@ fn run_writes_the_model_directory() {
         min_executed_rows: 2,
         ..s.clone()
     };
-    let e = dips_train::run(
-        Task::Card,
-        &dir.join("data"),
-        &out,
-        &past,
-        &RunOptions::default(),
-    )
-    .unwrap_err();
+    let e = run(&out, &past).unwrap_err();
     assert!(
         matches!(&e, TrainError::Settings { field, .. } if field == "min_executed_rows")
             && e.to_string().contains("steps 0 to 1"),
@@ -332,14 +315,7 @@ fn run_writes_the_model_directory() {
         min_executed_rows: 1,
         ..s.clone()
     };
-    let r = dips_train::run(
-        Task::Card,
-        &dir.join("data"),
-        &dir.join("models-executed"),
-        &executed,
-        &RunOptions::default(),
-    )
-    .unwrap();
+    let r = run(&dir.join("models-executed"), &executed).unwrap();
     assert_eq!((r.samples, r.dropped_early_steps), (all / 2, all / 2));
     for f in ["denoiser.onnx", "discriminator.onnx", "train_report.json"] {
         assert!(out.join(f).is_file(), "{f}");
