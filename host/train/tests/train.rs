@@ -89,6 +89,42 @@ fn training_lowers_the_held_out_loss() {
     std::fs::remove_dir_all(&dir).unwrap();
 }
 
+#[test]
+fn angle_columns_are_raw_unless_normalize_angles() {
+    use dips_train::data::{Normalizer, Samples, angle_columns};
+    let (dir, ds) = dataset(Task::Screwdriver, "angles", 4);
+    let all: Vec<usize> = (0..ds.demos.len()).collect();
+    let samples = Samples::gather(&ds, &all);
+    let pairs = angle_columns(Task::Screwdriver);
+    assert!(!pairs.is_empty());
+    let raw = Normalizer::fit(&samples, Task::Screwdriver, 1e-4, false).unwrap();
+    let scored = Normalizer::fit(&samples, Task::Screwdriver, 1e-4, true).unwrap();
+    let d = Task::Screwdriver.dims().dim();
+    for &(c, s_) in &pairs {
+        for j in [c, s_] {
+            assert_eq!((raw.mean[j], raw.std[j]), (0.0, 1.0));
+            // Z-scored: the column's own mean and std, as every other column gets.
+            let col: Vec<f64> = samples.x.chunks_exact(d).map(|r| f64::from(r[j])).collect();
+            let m = col.iter().sum::<f64>() / col.len() as f64;
+            let v = col.iter().map(|x| (x - m) * (x - m)).sum::<f64>() / col.len() as f64;
+            assert!(
+                (f64::from(scored.mean[j]) - m).abs() < 1e-4,
+                "mean of column {j}"
+            );
+            assert!(
+                (f64::from(scored.std[j]) - v.sqrt().max(1e-4)).abs() < 1e-4,
+                "std of column {j}"
+            );
+        }
+    }
+    // Every other column is the same either way.
+    let others = (0..d).filter(|j| !pairs.iter().any(|&(c, s_)| *j == c || *j == s_));
+    for j in others {
+        assert_eq!((raw.mean[j], raw.std[j]), (scored.mean[j], scored.std[j]));
+    }
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
 /// Train tiny models and check their exports on tract and the kernel against burn;
 /// `start_embed_dim` > 0 also trains with state-only start rows.
 fn check_export(task: Task, start_embed_dim: usize) {
