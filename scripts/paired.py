@@ -4,7 +4,7 @@
 Usage: scripts/paired.py RESULTS.json [RESULTS.json ...]
 
 Reads the `results.json` of one or more `dips eval` runs (trials of the same method and seed
-in a later file replace earlier ones) and prints, over the seeds `dips` ran: each method's
+in a later file replace earlier ones) and prints, over the seeds every method ran: each method's
 valid count, mean ± standard error and median of the outcome (screwdriver: final yaw in rad;
 card: distance to the goal in cm; lower is better for both; every trial, valid or not, as
 `results.md` counts it), then the per-seed paired difference `dips` − method (same seed,
@@ -12,23 +12,50 @@ same start, same world): its mean, standard error, its share of the method's mea
 how many seeds `dips` did better. The tables of docs/results/README.md ("Twenty more
 seeds", "Thirty more seeds") are its output.
 """
-import json,sys,math,statistics as st
-def load(p):
-    r=json.load(open(p)); d={}
-    for t in r['trials']: d[(t['method'],t['seed'])]=t
-    return d
-D={}
-for p in sys.argv[1:]: D.update(load(p))
-methods=['dips','dips-k1','dips-max-likelihood']
-seeds=sorted({s for (m,s) in D if m=='dips'})
-print('seeds',seeds[0],'..',seeds[-1],len(seeds))
-for m in methods:
-    xs=[D[(m,s)]['outcome'] for s in seeds if (m,s) in D]
-    v=sum(D[(m,s)]['valid'] for s in seeds if (m,s) in D)
-    print(f"{m:22s} valid {v}/{len(xs)} mean {st.mean(xs):.4f} ± SE {st.stdev(xs)/math.sqrt(len(xs)):.4f} median {st.median(xs):.4f}")
-for m in methods[1:]:
-    diff=[D[('dips',s)]['outcome']-D[(m,s)]['outcome'] for s in seeds if (m,s) in D]
-    mean=st.mean(diff); se=st.stdev(diff)/math.sqrt(len(diff))
-    base=st.mean([D[(m,s)]['outcome'] for s in seeds])
-    better=sum(d< -1e-9 for d in diff); eq=sum(abs(d)<=1e-9 for d in diff)
-    print(f"dips - {m}: {mean:+.4f} (SE {se:.4f}) = {mean/se:+.1f} SE, {100*mean/base:+.1f}% of its mean; dips better in {better} of {len(diff)} ({eq} equal)")
+import json
+import math
+import statistics as st
+import sys
+
+METHODS = ["dips", "dips-k1", "dips-max-likelihood"]
+
+
+def trials(paths):
+    """(method, seed) → trial over the files; a later file's trial replaces an earlier one."""
+    out = {}
+    for path in paths:
+        with open(path) as f:
+            for t in json.load(f)["trials"]:
+                out[(t["method"], t["seed"])] = t
+    return out
+
+
+def se(xs):
+    return st.stdev(xs) / math.sqrt(len(xs))
+
+
+def main(paths):
+    by = trials(paths)
+    # Paired: only the seeds every method ran.
+    seeds = sorted(s for (m, s) in by if m == METHODS[0] and all((o, s) in by for o in METHODS))
+    if len(seeds) < 2:
+        sys.exit("paired.py: fewer than two seeds that every method ran")
+    print("seeds", seeds[0], "..", seeds[-1], len(seeds))
+    out = {m: [by[(m, s)]["outcome"] for s in seeds] for m in METHODS}
+    for m in METHODS:
+        valid = sum(by[(m, s)]["valid"] for s in seeds)
+        xs = out[m]
+        print(f"{m:22s} valid {valid}/{len(xs)} mean {st.mean(xs):.4f} ± SE {se(xs):.4f} "
+              f"median {st.median(xs):.4f}")
+    for m in METHODS[1:]:
+        diff = [a - b for a, b in zip(out[METHODS[0]], out[m])]
+        mean = st.mean(diff)
+        better = sum(d < -1e-9 for d in diff)
+        equal = sum(abs(d) <= 1e-9 for d in diff)
+        print(f"dips - {m}: {mean:+.4f} (SE {se(diff):.4f}) = {mean / se(diff):+.1f} SE, "
+              f"{100 * mean / st.mean(out[m]):+.1f}% of its mean; dips better in {better} "
+              f"of {len(diff)} ({equal} equal)")
+
+
+if __name__ == "__main__":
+    main(sys.argv[1:])

@@ -18,8 +18,9 @@
 //! From each start state it samples 64 segments of the mode as the planner does (`--sampler`,
 //! default `dips_cli::search_args::DEFAULT_SAMPLER`, the task's invariant angle; `--guidance W`,
 //! `--noise-factor F` and `--yaw-min RAD` change the guidance weight, DDPM's noise factor and
-//! the lowest start yaw the models are asked about) and prints: the executed and the mean diffused change of the task's progress
-//! coordinate (yaw in rad, card y in m), the mean first-step joint jump `‖q₁ − q₀‖` of the
+//! the lowest start yaw the models are asked about) and prints: the executed and the mean
+//! diffused change of the task's progress coordinate (yaw in rad, card y in m), the mean
+//! first-step joint jump `‖q₁ − q₀‖` of the
 //! diffused segments (the model's start consistency), the share of segments with a joint more
 //! than 0.05 rad outside the Allegro hand's limits after row 0 and the mean of their largest
 //! excess (rad), and Ψ's mean score, its effective sample size over the 64 and its correlation
