@@ -24,9 +24,12 @@ def trials(paths):
     """(method, seed) → trial over the files; a later file's trial replaces an earlier one."""
     out = {}
     for path in paths:
-        with open(path) as f:
-            for t in json.load(f)["trials"]:
-                out[(t["method"], t["seed"])] = t
+        try:
+            with open(path) as f:
+                for t in json.load(f)["trials"]:
+                    out[(t["method"], t["seed"])] = t
+        except (OSError, ValueError, KeyError, TypeError) as e:
+            sys.exit(f"paired.py: {path} is not a `dips eval` results.json ({e!r})")
     return out
 
 
@@ -35,6 +38,8 @@ def se(xs):
 
 
 def main(paths):
+    if not paths:
+        sys.exit("usage: scripts/paired.py RESULTS.json [RESULTS.json ...]")
     by = trials(paths)
     # Paired: only the seeds every method ran.
     seeds = sorted(s for (m, s) in by if m == METHODS[0] and all((o, s) in by for o in METHODS))
