@@ -2,8 +2,7 @@
 //! ablations, each an episode in which contact modes are chosen and CSVTO is initialised.
 //!
 //! - **DIPS** (`dips`): before each mode, one A* planning call in the kernel from the measured
-//!   state (goal: yaw − π/3, card y = −6 cm; depth 7 for the screwdriver, the remaining modes
-//!   for the card); the first planned mode is executed by CSVTO initialised with fresh
+//!   state (goal: yaw − π/3, card y = −6 cm; the search depth: [`SearchDepth`]); the first planned mode is executed by CSVTO initialised with fresh
 //!   diffusion samples conditioned on the mode and the state; then replan. The episode stops at
 //!   the mode limit (7 / 5) or when a plan holds no mode.
 //! - `dips-k1` (one particle per node), `dips-max-likelihood` (single trajectory per node, the
@@ -142,6 +141,49 @@ pub struct OnlineSettings {
     pub max_modes: Option<usize>,
     /// How the search forms `g` (`None`: the task's, [`SearchConfig::for_task`]).
     pub cost_to_come: Option<CostToCome>,
+    /// How deep each planning call searches (`None`: the task's, [`SearchDepth::for_task`]).
+    pub search_depth: Option<SearchDepth>,
+}
+
+/// How deep the planning calls of an episode search.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum SearchDepth {
+    /// The task's mode limit on every call (7 / 5), whatever the episode has left: the
+    /// paper's screwdriver ("the same depth of 7 throughout the task").
+    Fixed,
+    /// The modes the episode has left (the limit less the modes executed): the paper's card.
+    ModesLeft,
+}
+
+impl SearchDepth {
+    /// Both rules, in `--search-depth` order.
+    pub const ALL: [Self; 2] = [Self::Fixed, Self::ModesLeft];
+
+    /// The task's rule (`docs/online.md`, "Search depth").
+    pub fn for_task(scene: SceneKind) -> Self {
+        match scene {
+            SceneKind::Screwdriver => Self::Fixed,
+            SceneKind::Card => Self::ModesLeft,
+        }
+    }
+
+    /// The name used by `--search-depth` and `eval.json`.
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Fixed => "fixed",
+            Self::ModesLeft => "modes-left",
+        }
+    }
+
+    /// The depth of the planning call made after `executed` of the episode's `limit` modes
+    /// (at least 1).
+    pub fn depth(self, limit: usize, executed: usize) -> u8 {
+        let d = match self {
+            Self::Fixed => limit,
+            Self::ModesLeft => limit.saturating_sub(executed),
+        };
+        d.clamp(1, u8::MAX as usize) as u8
+    }
 }
 
 impl Default for OnlineSettings {
@@ -154,6 +196,7 @@ impl Default for OnlineSettings {
             sequence: None,
             max_modes: None,
             cost_to_come: None,
+            search_depth: None,
         }
     }
 }
@@ -290,6 +333,7 @@ fn plan_call<H: Hand + ?Sized>(
     let record = PlanRecord {
         executed: executed.len(),
         goal,
+        depth,
         modes: modes.iter().map(|m| m.name()).collect(),
         status: format!("{:?}", report.status),
         expected_terminal_state: report
@@ -402,10 +446,10 @@ pub fn run_online<H: Hand + ?Sized>(
                 (None, Some(s)) => s,
                 (None, None) => bail!("method `{}` needs the diffusion models", method.name()),
             };
-            let depth = match scene {
-                SceneKind::Screwdriver => SCREWDRIVER_MODES,
-                SceneKind::Card => limit - executed.len(),
-            } as u8;
+            let depth = settings
+                .search_depth
+                .unwrap_or(SearchDepth::for_task(scene))
+                .depth(limit, executed.len());
             progress(&format!(
                 "planning call {} (depth {depth})",
                 plans.len() + 1
@@ -468,4 +512,24 @@ pub fn run_online<H: Hand + ?Sized>(
     );
     result.plans = plans;
     Ok(result)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn search_depth_is_the_limit_or_the_modes_left() {
+        assert_eq!(SearchDepth::Fixed.depth(7, 0), 7);
+        assert_eq!(SearchDepth::Fixed.depth(7, 6), 7);
+        assert_eq!(SearchDepth::ModesLeft.depth(7, 0), 7);
+        assert_eq!(SearchDepth::ModesLeft.depth(7, 6), 1);
+        assert_eq!(SearchDepth::ModesLeft.depth(5, 3), 2);
+        // Never 0: a call is only made with a mode left, but the depth stays a valid search.
+        assert_eq!(SearchDepth::ModesLeft.depth(5, 5), 1);
+        assert_eq!(
+            SearchDepth::for_task(SceneKind::Card),
+            SearchDepth::ModesLeft
+        );
+    }
 }

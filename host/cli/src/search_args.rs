@@ -3,6 +3,7 @@
 //! the same way.
 
 use clap::{Args, ValueEnum};
+use dips_host::online::SearchDepth;
 use dips_kernel::diffusion::SamplerConfig;
 use dips_kernel::search::CostToCome;
 
@@ -28,6 +29,25 @@ impl From<CostToComeArg> for CostToCome {
         match c {
             CostToComeArg::Cumulative => Self::Cumulative,
             CostToComeArg::LastSegment => Self::LastSegment,
+        }
+    }
+}
+
+/// How deep an episode's planning calls search (`--search-depth` of `dips episode` and
+/// `dips eval`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum SearchDepthArg {
+    /// The task's mode limit on every call (the paper's screwdriver: 7 throughout).
+    Fixed,
+    /// The modes the episode has left (the paper's card).
+    ModesLeft,
+}
+
+impl From<SearchDepthArg> for SearchDepth {
+    fn from(d: SearchDepthArg) -> Self {
+        match d {
+            SearchDepthArg::Fixed => Self::Fixed,
+            SearchDepthArg::ModesLeft => Self::ModesLeft,
         }
     }
 }

@@ -111,7 +111,7 @@ pub fn write_report(
     let mut page = Page::new(&format!("dips eval: {}", s.task));
     page.paragraph(&format!(
         "{} methods × {} trials on seeds {}…{}; sampler {}, planning budget {} s per call, \
-         cost-to-come {}, engine {}. Outcome: {}; lower is better.",
+         cost-to-come {}, search depth {}, engine {}. Outcome: {}; lower is better.",
         s.methods.len(),
         s.eval.trials,
         s.eval.first_seed,
@@ -119,6 +119,7 @@ pub fn write_report(
         e.sampler,
         e.time_budget_s,
         e.cost_to_come,
+        e.search_depth,
         e.engine,
         s.outcome
     ));

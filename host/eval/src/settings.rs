@@ -4,7 +4,7 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{Context, bail};
 use dips_datagen::Shard;
-use dips_host::online::{Method, OnlineSettings, check_time_budget_s};
+use dips_host::online::{Method, OnlineSettings, SearchDepth, check_time_budget_s};
 use dips_host::planning::parse_sampler;
 use dips_host::scenes::SceneKind;
 use dips_kernel::search::{CostToCome, SearchConfig};
@@ -30,6 +30,10 @@ pub struct EpisodeSettings {
     /// recorded were all `cumulative`.
     #[serde(default = "cumulative")]
     pub cost_to_come: String,
+    /// How deep the planning calls searched ([`SearchDepth::name`]). Files written before it
+    /// was recorded used the task's rule of then, which is filled in when they are read.
+    #[serde(default)]
+    pub search_depth: String,
     /// Models directory (absolute).
     pub models: String,
     /// Engine of the models (`kernel` or `tract`).
@@ -39,6 +43,15 @@ pub struct EpisodeSettings {
 /// What [`EpisodeSettings::cost_to_come`] was before it was recorded.
 fn cumulative() -> String {
     CostToCome::Cumulative.name().to_string()
+}
+
+/// The search depth of every evaluation written before [`EpisodeSettings::search_depth`] was
+/// recorded: the screwdriver's fixed depth, the card's modes left.
+fn depth_before_recorded(scene: SceneKind) -> SearchDepth {
+    match scene {
+        SceneKind::Screwdriver => SearchDepth::Fixed,
+        SceneKind::Card => SearchDepth::ModesLeft,
+    }
 }
 
 /// One evaluation run (this machine's shard of it).
@@ -149,6 +162,12 @@ impl EvalSettings {
                 .unwrap_or(SearchConfig::for_task(self.task.task()).cost_to_come)
                 .name()
                 .to_string(),
+            search_depth: self
+                .online
+                .search_depth
+                .unwrap_or(SearchDepth::for_task(self.task))
+                .name()
+                .to_string(),
             models: std::path::absolute(&self.models)
                 .unwrap_or_else(|_| self.models.clone())
                 .display()
@@ -186,12 +205,22 @@ pub fn read_eval_file(dir: &Path) -> anyhow::Result<Option<EvalFile>> {
     }
     let text =
         std::fs::read_to_string(&path).with_context(|| format!("reading {}", path.display()))?;
-    let file = serde_json::from_str(&text).with_context(|| {
+    let mut file: EvalFile = serde_json::from_str(&text).with_context(|| {
         format!(
             "{} is not an eval settings file (delete it to start over)",
             path.display()
         )
     })?;
+    if file.episode.search_depth.is_empty() {
+        let scene = SceneKind::from_name(&file.episode.task).with_context(|| {
+            format!(
+                "{}: unknown task `{}` (expected screwdriver or card)",
+                path.display(),
+                file.episode.task
+            )
+        })?;
+        file.episode.search_depth = depth_before_recorded(scene).name().to_string();
+    }
     Ok(Some(file))
 }
 

@@ -332,7 +332,7 @@ pub fn markdown(s: &Summary) -> String {
     let e = &s.eval.episode;
     let mut out = format!(
         "# dips eval: {}\n\nSampler `{}`, planning budget {} s / {} expansions, cost-to-come \
-         `{}`, engine {}, seeds {}…{}. Lower is better. Every trial's `result.json` is under `episodes/`.\n\n",
+         `{}`, search depth `{}`, engine {}, seeds {}…{}. Lower is better. Every trial's `result.json` is under `episodes/`.\n\n",
         s.task,
         e.sampler,
         e.time_budget_s,
@@ -342,6 +342,7 @@ pub fn markdown(s: &Summary) -> String {
             e.node_budget.to_string()
         },
         e.cost_to_come,
+        e.search_depth,
         e.engine,
         s.eval.first_seed,
         s.eval.first_seed + s.eval.trials.saturating_sub(1) as u64,

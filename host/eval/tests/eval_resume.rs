@@ -7,7 +7,7 @@ use std::path::PathBuf;
 use dips_datagen::Shard;
 use dips_eval::report::{EpisodeReports, ReportOptions, median_trial, write_report};
 use dips_eval::{EvalSettings, run_eval, summarize};
-use dips_host::online::{Method, OnlineSettings};
+use dips_host::online::{Method, OnlineSettings, SearchDepth};
 use dips_host::planning::{default_models_dir, parse_sampler};
 use dips_host::scenes::SceneKind;
 use dips_kernel::mode::Task;
@@ -37,6 +37,7 @@ fn settings(methods: Vec<Method>, trials: usize) -> EvalSettings {
             sequence: None,
             max_modes: Some(1),
             cost_to_come: None,
+            search_depth: None,
         },
         models: default_models_dir(Task::Card).unwrap(),
         engine: EngineKind::Kernel,
@@ -129,6 +130,26 @@ fn a_killed_eval_resumes_without_redoing_episodes() {
     other.online.cost_to_come = CostToCome::ALL.into_iter().find(|&c| c != task_form);
     let err = run_eval(&other, &dir).unwrap_err().to_string();
     assert!(err.contains("eval.json"), "{err}");
+    // And the other search depth rule.
+    let mut other = settings(vec![Method::CsvtoSampled], 3);
+    let task_rule = SearchDepth::for_task(SceneKind::Card);
+    other.online.search_depth = SearchDepth::ALL.into_iter().find(|&d| d != task_rule);
+    let err = run_eval(&other, &dir).unwrap_err().to_string();
+    assert!(err.contains("eval.json"), "{err}");
+
+    // An eval.json written before the depth rule was recorded reads as the rule of then (the
+    // card's modes left), so its evaluation still resumes.
+    let path = dir.join("eval.json");
+    let mut old: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&path).unwrap()).unwrap();
+    assert_eq!(old["episode"]["search_depth"], "modes-left");
+    old["episode"]
+        .as_object_mut()
+        .unwrap()
+        .remove("search_depth");
+    std::fs::write(&path, serde_json::to_string(&old).unwrap()).unwrap();
+    let fourth = run_eval(&s, &dir).unwrap();
+    assert_eq!((fourth.ran, fourth.skipped), (0, 3));
     let _ = std::fs::remove_dir_all(&dir);
 }
 

@@ -265,6 +265,8 @@ pub struct PlanRecord {
     pub executed: usize,
     /// The goal searched for (yaw in rad, or card y in m).
     pub goal: f32,
+    /// The search depth: the most modes a plan may hold.
+    pub depth: u8,
     /// The planned modes, by name (the first is executed next).
     pub modes: Vec<&'static str>,
     /// How the search ended (`Found`, `Approximate(..)`, ...).
