@@ -2,6 +2,7 @@
 """What each executed screwdriver turn turned, by what came before it.
 
 Usage: scripts/turn_runs.py EVAL_DIR [EVAL_DIR ...]
+       scripts/turn_runs.py --probe PROBE.txt
 
 Reads every episode's `result.json` under `EVAL_DIR/episodes/` of one or more screwdriver
 `dips eval` runs (every method) and groups the executed turns by the mode that last reset the
@@ -9,10 +10,16 @@ grasp (`start`, `thumb-middle-regrasp` or `index-regrasp`) and by how many turns
 Per group it prints the number of turns, the mean and median yaw change in the world (rad;
 negative is turning the right way) and how many of those turns left the object invalid
 (tipped). The table "What a turn yields" of docs/results/README.md is its output.
+
+With `--probe` it reads instead what the `mode_probe` example printed for episodes
+(`cargo run --release -p dips-cli --example mode_probe -- RESULT.json ...`) and groups its
+turns the same way: per group the executed and the diffused (model's) mean yaw change and Ψ's
+mean score.
 """
 import glob
 import json
 import os
+import re
 import statistics as st
 import sys
 from collections import defaultdict
@@ -66,7 +73,51 @@ def main(dirs):
         )
 
 
+PROBE_LINE = re.compile(
+    r"\s+(\S+)\s+start \S+: executed (\S+), diffused (\S+);.*Ψ (\S+)"
+)
+
+
+def probe(path):
+    groups = defaultdict(list)
+    episodes = 0
+    since, reset = 0, "start"
+    try:
+        with open(path) as f:
+            lines = f.readlines()
+    except OSError as e:
+        sys.exit(f"turn_runs.py: cannot read {path} ({e!r})")
+    for line in lines:
+        if line.rstrip().endswith(".json:"):
+            episodes += 1
+            since, reset = 0, "start"
+            continue
+        m = PROBE_LINE.match(line)
+        if not m:
+            continue
+        mode = m.group(1)
+        if mode != "turn":
+            since, reset = 0, mode
+            continue
+        groups[(reset, since)].append(tuple(float(m.group(i)) for i in (2, 3, 4)))
+        since += 1
+    if not groups:
+        sys.exit(f"turn_runs.py: {path} holds no mode_probe lines of episode turns")
+    print(f"{episodes} episodes")
+    print("| last grasp reset | turns since | turns | executed mean (rad) | diffused mean | Ψ mean |")
+    print("|---|---|---|---|---|---|")
+    for key in sorted(groups):
+        v = groups[key]
+        ex, di, psi = (st.mean(x[i] for x in v) for i in range(3))
+        print(f"| {key[0]} | {key[1]} | {len(v)} | {ex:+.3f} | {di:+.3f} | {psi:.3f} |")
+
+
 if __name__ == "__main__":
     if len(sys.argv) < 2:
         sys.exit(__doc__.strip())
-    main(sys.argv[1:])
+    if sys.argv[1] == "--probe":
+        if len(sys.argv) != 3:
+            sys.exit("usage: scripts/turn_runs.py --probe PROBE.txt")
+        probe(sys.argv[2])
+    else:
+        main(sys.argv[1:])
