@@ -44,11 +44,9 @@ pub struct EpisodeArgs {
     /// The search's flags.
     #[command(flatten)]
     pub search: SearchArgs,
-    /// How deep each planning call searches: `fixed` (the task's mode limit on every call,
-    /// the paper's screwdriver) or `modes-left` (the modes the episode has left, the paper's
-    /// card). Default: the task's (`docs/online.md`, "Search depth").
-    #[arg(long, value_enum)]
-    pub search_depth: Option<crate::search_args::SearchDepthArg>,
+    /// The episode's search depth flag.
+    #[command(flatten)]
+    pub depth: crate::search_args::DepthArgs,
     /// Stop after this many modes (default: the task's 7 / 5; the search depth stays).
     #[arg(long)]
     pub max_modes: Option<usize>,
@@ -111,7 +109,7 @@ pub fn run(args: EpisodeArgs) -> anyhow::Result<()> {
         sequence,
         max_modes: args.max_modes,
         cost_to_come: args.search.cost_to_come(),
-        search_depth: args.search_depth.map(Into::into),
+        search_depth: args.depth.search_depth(),
     };
     let exec = ExecSettings::for_task(task);
     let mut world = World::new(task);

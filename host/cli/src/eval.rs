@@ -59,11 +59,9 @@ pub struct EvalArgs {
     /// same bit for bit.
     #[arg(long, default_value = "in-process", value_parser = KernelTarget::parse)]
     pub kernel: KernelTarget,
-    /// How deep each planning call searches: `fixed` (the task's mode limit on every call,
-    /// the paper's screwdriver) or `modes-left` (the modes the episode has left, the paper's
-    /// card). Default: the task's (`docs/online.md`, "Search depth").
-    #[arg(long, value_enum)]
-    pub search_depth: Option<crate::search_args::SearchDepthArg>,
+    /// The episode's search depth flag.
+    #[command(flatten)]
+    pub depth: crate::search_args::DepthArgs,
     /// Stop each episode after this many modes (default: the task's 7 / 5).
     #[arg(long)]
     pub max_modes: Option<usize>,
@@ -140,7 +138,7 @@ pub fn run(args: EvalArgs) -> anyhow::Result<()> {
             sequence: None,
             max_modes: args.max_modes,
             cost_to_come: args.search.cost_to_come(),
-            search_depth: args.search_depth.map(Into::into),
+            search_depth: args.depth.search_depth(),
         },
         models: models_dir(args.models.as_deref(), task.task())?,
         engine: args.engine.into(),

@@ -52,6 +52,24 @@ impl From<SearchDepthArg> for SearchDepth {
     }
 }
 
+/// The search depth flag of `dips episode` and `dips eval` (a single planning call,
+/// `dips plan`, takes `--depth` instead).
+#[derive(Debug, Clone, Args)]
+pub struct DepthArgs {
+    /// How deep each planning call searches: `fixed` (the task's mode limit on every call,
+    /// the paper's screwdriver) or `modes-left` (the modes the episode has left, the paper's
+    /// card). Default: the task's (`docs/online.md`, "Search depth").
+    #[arg(long, value_enum)]
+    pub search_depth: Option<SearchDepthArg>,
+}
+
+impl DepthArgs {
+    /// `--search-depth` when given; `None` leaves the task's.
+    pub fn search_depth(&self) -> Option<SearchDepth> {
+        self.search_depth.map(Into::into)
+    }
+}
+
 /// The flags that set how a planning call searches, beyond the task's own settings.
 #[derive(Debug, Clone, Args)]
 pub struct SearchArgs {
@@ -154,5 +172,31 @@ mod tests {
             .to_string();
         assert!(e.contains("--sampler"), "{e}");
         assert!(parse(&["--cost-to-come", "sum"]).is_err());
+    }
+
+    #[derive(Debug, Parser)]
+    struct DepthCli {
+        #[command(flatten)]
+        depth: DepthArgs,
+    }
+
+    #[test]
+    fn search_depth_defaults_to_the_tasks_and_names_its_values() {
+        let depth = |extra: &[&str]| {
+            let mut argv = vec!["dips-x"];
+            argv.extend_from_slice(extra);
+            DepthCli::try_parse_from(argv).map(|c| c.depth.search_depth())
+        };
+        assert_eq!(depth(&[]).unwrap(), None);
+        assert_eq!(
+            depth(&["--search-depth", "modes-left"]).unwrap(),
+            Some(SearchDepth::ModesLeft)
+        );
+        assert_eq!(
+            depth(&["--search-depth", "fixed"]).unwrap(),
+            Some(SearchDepth::Fixed)
+        );
+        let e = depth(&["--search-depth", "7"]).unwrap_err().to_string();
+        assert!(e.contains("fixed") && e.contains("modes-left"), "{e}");
     }
 }

@@ -244,7 +244,7 @@ pub fn claim_dir(dir: &Path, settings: &EvalSettings) -> anyhow::Result<EvalFile
         if old.episode != episode {
             bail!(
                 "{} holds an evaluation with other settings ({}); use another --out, or the same \
-                 task, sampler, budgets, mode limit, models and engine",
+                 task, sampler, budgets, mode limit, cost-to-come, search depth, models and engine",
                 dir.join(EVAL_FILE).display(),
                 serde_json::to_string(&old.episode).unwrap_or_default()
             );
