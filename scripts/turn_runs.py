@@ -43,25 +43,41 @@ def episodes(dirs):
             yield path, runs
 
 
+def keyed_turns(modes):
+    """For a sequence of (mode, value) in execution order, yield ((reset, since), value) for
+    every turn: the mode that last reset the grasp (`start` before any regrasp) and the turns
+    run since it."""
+    since, reset = 0, "start"
+    for mode, value in modes:
+        if mode != "turn":
+            since, reset = 0, mode
+            continue
+        yield (reset, since), value
+        since += 1
+
+
 def main(dirs):
     yaws = defaultdict(list)
     tipped = defaultdict(int)
     count = 0
     for path, runs in episodes(dirs):
         count += 1
-        since, reset = 0, "start"
-        for run in runs:
-            if run["mode"] != "turn":
-                since, reset = 0, run["mode"]
-                continue
-            try:
-                change = run["end_state"][-1] - run["start_state"][-1]
-                valid = all(s["valid"] for s in run["steps"])
-            except (KeyError, IndexError, TypeError) as e:
-                sys.exit(f"turn_runs.py: {path}: a mode run without states or steps ({e!r})")
-            yaws[(reset, since)].append(change)
-            tipped[(reset, since)] += not valid
-            since += 1
+        try:
+            turns = [
+                (
+                    run["mode"],
+                    (
+                        run["end_state"][-1] - run["start_state"][-1],
+                        all(s["valid"] for s in run["steps"]),
+                    ),
+                )
+                for run in runs
+            ]
+        except (KeyError, IndexError, TypeError) as e:
+            sys.exit(f"turn_runs.py: {path}: a mode run without states or steps ({e!r})")
+        for key, (change, valid) in keyed_turns(turns):
+            yaws[key].append(change)
+            tipped[key] += not valid
     print(f"{count} episodes")
     print("| last grasp reset | turns since | turns | yaw change mean (rad) | median | tipped |")
     print("|---|---|---|---|---|---|")
@@ -79,31 +95,27 @@ PROBE_LINE = re.compile(
 
 
 def probe(path):
-    groups = defaultdict(list)
-    episodes = 0
-    since, reset = 0, "start"
     try:
         with open(path) as f:
             lines = f.readlines()
     except OSError as e:
         sys.exit(f"turn_runs.py: cannot read {path} ({e!r})")
+    # One (mode, (executed, diffused, Ψ)) list per episode, in mode_probe's order.
+    episodes = []
     for line in lines:
         if line.rstrip().endswith(".json:"):
-            episodes += 1
-            since, reset = 0, "start"
+            episodes.append([])
             continue
         m = PROBE_LINE.match(line)
-        if not m:
-            continue
-        mode = m.group(1)
-        if mode != "turn":
-            since, reset = 0, mode
-            continue
-        groups[(reset, since)].append(tuple(float(m.group(i)) for i in (2, 3, 4)))
-        since += 1
+        if m and episodes:
+            episodes[-1].append((m.group(1), tuple(float(m.group(i)) for i in (2, 3, 4))))
+    groups = defaultdict(list)
+    for modes in episodes:
+        for key, value in keyed_turns(modes):
+            groups[key].append(value)
     if not groups:
         sys.exit(f"turn_runs.py: {path} holds no mode_probe lines of episode turns")
-    print(f"{episodes} episodes")
+    print(f"{len(episodes)} episodes")
     print("| last grasp reset | turns since | turns | executed mean (rad) | diffused mean | Ψ mean |")
     print("|---|---|---|---|---|---|")
     for key in sorted(groups):
