@@ -14,7 +14,11 @@ negative is turning the right way) and how many of those turns left the object i
 With `--probe` it reads instead what the `mode_probe` example printed for episodes
 (`cargo run --release -p dips-cli --example mode_probe -- RESULT.json ...`) and groups its
 turns the same way: per group the executed and the diffused (model's) mean yaw change and Ψ's
-mean score.
+mean score. When the probe ran with `--all-modes` (every mode probed at every executed start,
+the executed one marked `*`), the groups are the executed starts, turn or not, keyed by the
+turns executed before them, and each mode gets its mean diffused yaw change; with `--profile`
+also split into row 1's change (the level the model put its segment at) and the change after
+row 1 (what the segment turned).
 """
 import glob
 import json
@@ -90,8 +94,10 @@ def main(dirs):
 
 
 PROBE_LINE = re.compile(
-    r"\s+(\S+)\s+start \S+: executed (\S+), diffused (\S+);.*Ψ (\S+)"
+    r"\s+(\*\s+)?(\S+)\s+start \S+: executed (\S+), diffused (\S+);.*Ψ (\S+)"
 )
+
+MODES = (("turn", "turn"), ("thumb-middle-regrasp", "TM regrasp"), ("index-regrasp", "index regrasp"))
 
 
 def probe(path):
@@ -100,6 +106,9 @@ def probe(path):
             lines = f.readlines()
     except OSError as e:
         sys.exit(f"turn_runs.py: cannot read {path} ({e!r})")
+    if any(m and m.group(1) for m in map(PROBE_LINE.match, lines)):
+        probe_all_modes(path, lines)
+        return
     # One (mode, (executed, diffused, Ψ)) list per episode, in mode_probe's order.
     episodes = []
     for line in lines:
@@ -108,7 +117,7 @@ def probe(path):
             continue
         m = PROBE_LINE.match(line)
         if m and episodes:
-            episodes[-1].append((m.group(1), tuple(float(m.group(i)) for i in (2, 3, 4))))
+            episodes[-1].append((m.group(2), tuple(float(m.group(i)) for i in (3, 4, 5))))
     groups = defaultdict(list)
     for modes in episodes:
         for key, value in keyed_turns(modes):
@@ -122,6 +131,73 @@ def probe(path):
         v = groups[key]
         ex, di, psi = (st.mean(x[i] for x in v) for i in range(3))
         print(f"| {key[0]} | {key[1]} | {len(v)} | {ex:+.3f} | {di:+.3f} | {psi:.3f} |")
+
+
+def probe_all_modes(path, lines):
+    """`mode_probe --all-modes [--profile]` output: one group per executed start."""
+    episodes = []
+    for line in lines:
+        if line.rstrip().endswith(".json:"):
+            episodes.append([])
+            continue
+        m = PROBE_LINE.match(line)
+        if m and episodes:
+            executed = m.group(1) is not None
+            # [executed?, mode, executed change, diffused change, row 1's change]
+            episodes[-1].append([executed, m.group(2), float(m.group(3)), float(m.group(4)), None])
+        elif "profile, diffused:" in line and episodes and episodes[-1]:
+            rows = [float(v) for v in line.split(":", 1)[1].split()]
+            episodes[-1][-1][4] = rows[1] if len(rows) > 1 else None
+    groups = defaultdict(list)
+    for probes in episodes:
+        # mode_probe prints every mode once per start, in the task's order: a start's block
+        # ends where a mode comes again.
+        blocks = []
+        for executed, mode, change, diffused, row1 in probes:
+            if not blocks or mode in blocks[-1][1]:
+                blocks.append([None, {}])
+            blocks[-1][1][mode] = (diffused, row1)
+            if executed:
+                blocks[-1][0] = (mode, change)
+        starts = [(ex[0], (ex[1], block)) for ex, block in blocks if ex is not None]
+        since, reset = 0, "start"
+        for mode, value in starts:
+            groups[(reset, since)].append((mode, value))
+            if mode == "turn":
+                since += 1
+            else:
+                since, reset = 0, mode
+    if not groups:
+        sys.exit(f"turn_runs.py: {path} holds no mode_probe --all-modes lines")
+    profiled = all(
+        block.get(m, (0, None))[1] is not None
+        for v in groups.values()
+        for _, (_, block) in v
+        for m, _ in MODES
+        if m in block
+    )
+    cell = "diffused / row 1 / after row 1" if profiled else "diffused"
+    print(f"{len(episodes)} episodes; per mode the mean yaw change (rad): {cell}")
+    head = " | ".join(f"{name}: {cell}" for _, name in MODES)
+    print(f"| last grasp reset | turns since | starts | executed turn (n) | {head} |")
+    print("|---" * (4 + len(MODES)) + "|")
+    for key in sorted(groups):
+        v = groups[key]
+        turns = [change for mode, (change, _) in v if mode == "turn"]
+        ex = f"{st.mean(turns):+.3f} ({len(turns)})" if turns else "–"
+        cells = []
+        for mode, _ in MODES:
+            got = [block[mode] for _, (_, block) in v if mode in block]
+            if not got:
+                cells.append("–")
+                continue
+            total = st.mean(d for d, _ in got)
+            if profiled:
+                level = st.mean(r for _, r in got)
+                cells.append(f"{total:+.3f} / {level:+.3f} / {total - level:+.3f}")
+            else:
+                cells.append(f"{total:+.3f}")
+        print(f"| {key[0]} | {key[1]} | {len(v)} | {ex} | " + " | ".join(cells) + " |")
 
 
 if __name__ == "__main__":

@@ -4,7 +4,9 @@
 //! Two sources of start states:
 //!
 //! - **Episodes**: for every executed mode of each `result.json` given (written by
-//!   `dips episode` or `dips eval`), the mode's executed start state.
+//!   `dips episode` or `dips eval`), the mode's executed start state. With `--all-modes`,
+//!   every mode the search expands is probed there, the executed one marked `*` (the others'
+//!   "executed" change is 0: they were not executed).
 //! - **Demos** (`--demos DIR`): the modes of a datagen directory's demos, optionally only
 //!   mode `--mode M` right after mode `--after P` (`start` for a demo's first mode), starting
 //!   below `--below X` in the task's progress coordinate, of the models' held-out demos
@@ -105,6 +107,8 @@ struct Setup {
     yaw_min: Option<f32>,
     /// Print the mean change of the progress coordinate at every row.
     profile: bool,
+    /// Probe every mode of the task at each executed start, not only the executed one.
+    all_modes: bool,
 }
 
 fn probe() -> anyhow::Result<()> {
@@ -115,6 +119,7 @@ fn probe() -> anyhow::Result<()> {
     let mut noise: Option<f32> = None;
     let mut yaw_min: Option<f32> = None;
     let mut profile = false;
+    let mut all_modes = false;
     let mut demos: Option<PathBuf> = None;
     let mut task_arg: Option<String> = None;
     let mut filter = DemoFilter::default();
@@ -135,6 +140,7 @@ fn probe() -> anyhow::Result<()> {
             "--limit" => filter.limit = Some(value("a count")?.parse()?),
             "--held-out" => filter.held_out = true,
             "--profile" => profile = true,
+            "--all-modes" => all_modes = true,
             _ if a.starts_with("--") => bail!("unknown option {a}"),
             _ => files.push(PathBuf::from(a)),
         }
@@ -158,6 +164,7 @@ fn probe() -> anyhow::Result<()> {
         sampler,
         yaw_min,
         profile,
+        all_modes,
     };
     match demos {
         Some(dir) => {
@@ -171,7 +178,7 @@ fn probe() -> anyhow::Result<()> {
         None if files.is_empty() => bail!(
             "usage: mode_probe [--models DIR] [--sampler S] [--guidance W] [--noise-factor F] [--yaw-min RAD] \
              [--profile] \
-             (RESULT.json ... | --demos DIR [--task T] [--mode M] [--after M|start] [--below X] \
+             ([--all-modes] RESULT.json ... | --demos DIR [--task T] [--mode M] [--after M|start] [--below X] \
              [--held-out] [--limit N])"
         ),
         None => {
@@ -197,13 +204,38 @@ fn probe_result(setup: &Setup, file: &Path) -> anyhow::Result<()> {
     let mut runs = Vec::new();
     for run in r["mode_runs"].as_array().context("no mode_runs")? {
         let name = run["mode"].as_str().context("mode")?;
-        runs.push(Run {
-            label: String::new(),
-            mode: TaskMode::from_name(task, name).map_err(|e| anyhow::anyhow!("{e:?}"))?,
-            start: serde_json::from_value(run["start_state"].clone())?,
-            end: serde_json::from_value(run["end_state"].clone())?,
-            data: None,
-        });
+        let executed = TaskMode::from_name(task, name).map_err(|e| anyhow::anyhow!("{e:?}"))?;
+        let start: Vec<f64> = serde_json::from_value(run["start_state"].clone())?;
+        let end: Vec<f64> = serde_json::from_value(run["end_state"].clone())?;
+        let modes: Vec<TaskMode> = if setup.all_modes {
+            task.candidate_modes()
+                .filter_map(|id| TaskMode::from_id(task, id))
+                .collect()
+        } else {
+            vec![executed]
+        };
+        for mode in modes {
+            // Another mode than the executed one has no executed change: its end is its start.
+            let end = if mode == executed {
+                end.clone()
+            } else {
+                start.clone()
+            };
+            let label = if setup.all_modes && mode == executed {
+                "* "
+            } else if setup.all_modes {
+                "  "
+            } else {
+                ""
+            };
+            runs.push(Run {
+                label: label.to_string(),
+                mode,
+                start: start.clone(),
+                end,
+                data: None,
+            });
+        }
     }
     line(&format!("{}:", file.display()))?;
     let dir = models_dir(setup.models_arg.as_deref(), task)?;
