@@ -100,16 +100,10 @@ PROBE_LINE = re.compile(
 MODES = (("turn", "turn"), ("thumb-middle-regrasp", "TM regrasp"), ("index-regrasp", "index regrasp"))
 
 
-def probe(path):
-    try:
-        with open(path) as f:
-            lines = f.readlines()
-    except OSError as e:
-        sys.exit(f"turn_runs.py: cannot read {path} ({e!r})")
-    if any(m and m.group(1) for m in map(PROBE_LINE.match, lines)):
-        probe_all_modes(path, lines)
-        return
-    # One (mode, (executed, diffused, Ψ)) list per episode, in mode_probe's order.
+def probe_records(lines):
+    """mode_probe's lines of episodes, one list per episode in its order, each probe a list
+    [executed (marked `*`), mode, executed change, diffused change, Ψ, row 1's change (with
+    `--profile`, else None)]."""
     episodes = []
     for line in lines:
         if line.rstrip().endswith(".json:"):
@@ -117,9 +111,27 @@ def probe(path):
             continue
         m = PROBE_LINE.match(line)
         if m and episodes:
-            episodes[-1].append((m.group(2), tuple(float(m.group(i)) for i in (3, 4, 5))))
+            values = [float(m.group(i)) for i in (3, 4, 5)]
+            episodes[-1].append([m.group(1) is not None, m.group(2), *values, None])
+        elif "profile, diffused:" in line and episodes and episodes[-1]:
+            rows = [float(v) for v in line.split(":", 1)[1].split()]
+            episodes[-1][-1][5] = rows[1] if len(rows) > 1 else None
+    return episodes
+
+
+def probe(path):
+    try:
+        with open(path) as f:
+            lines = f.readlines()
+    except OSError as e:
+        sys.exit(f"turn_runs.py: cannot read {path} ({e!r})")
+    episodes = probe_records(lines)
+    if any(p[0] for probes in episodes for p in probes):
+        probe_all_modes(path, episodes)
+        return
     groups = defaultdict(list)
-    for modes in episodes:
+    for probes in episodes:
+        modes = [(mode, (change, diffused, psi)) for _, mode, change, diffused, psi, _ in probes]
         for key, value in keyed_turns(modes):
             groups[key].append(value)
     if not groups:
@@ -133,27 +145,14 @@ def probe(path):
         print(f"| {key[0]} | {key[1]} | {len(v)} | {ex:+.3f} | {di:+.3f} | {psi:.3f} |")
 
 
-def probe_all_modes(path, lines):
+def probe_all_modes(path, episodes):
     """`mode_probe --all-modes [--profile]` output: one group per executed start."""
-    episodes = []
-    for line in lines:
-        if line.rstrip().endswith(".json:"):
-            episodes.append([])
-            continue
-        m = PROBE_LINE.match(line)
-        if m and episodes:
-            executed = m.group(1) is not None
-            # [executed?, mode, executed change, diffused change, row 1's change]
-            episodes[-1].append([executed, m.group(2), float(m.group(3)), float(m.group(4)), None])
-        elif "profile, diffused:" in line and episodes and episodes[-1]:
-            rows = [float(v) for v in line.split(":", 1)[1].split()]
-            episodes[-1][-1][4] = rows[1] if len(rows) > 1 else None
     groups = defaultdict(list)
     for probes in episodes:
         # mode_probe prints every mode once per start, in the task's order: a start's block
         # ends where a mode comes again.
         blocks = []
-        for executed, mode, change, diffused, row1 in probes:
+        for executed, mode, change, diffused, _, row1 in probes:
             if not blocks or mode in blocks[-1][1]:
                 blocks.append([None, {}])
             blocks[-1][1][mode] = (diffused, row1)
