@@ -171,6 +171,9 @@ fn probe() -> anyhow::Result<()> {
             if !files.is_empty() {
                 bail!("give either --demos or result files, not both");
             }
+            if setup.all_modes {
+                bail!("--all-modes probes the executed starts of result files, not --demos");
+            }
             let task = Task::from_name(task_arg.as_deref().unwrap_or("screwdriver"))
                 .map_err(|e| anyhow::anyhow!("--task: {e:?}"))?;
             probe_demos(&setup, task, &dir, &filter)
