@@ -9,20 +9,12 @@ and each run's executed mode sequence (`t` turn, `m` thumb-middle regrasp, `r` i
 card modes by their initials); then per method the mean paired difference A − B and its
 standard error. The `paired-*-vs-*.txt` files of docs/results/ are its output.
 """
-import json
-import math
 import statistics as st
 import sys
 
+from paired import se, trials
+
 SHORT = {"turn": "t", "thumb-middle-regrasp": "m", "index-regrasp": "r"}
-
-
-def load(path):
-    try:
-        with open(path) as f:
-            return {(t["method"], t["seed"]): t for t in json.load(f)["trials"]}
-    except (OSError, ValueError, KeyError, TypeError) as e:
-        sys.exit(f"compare.py: {path} is not a `dips eval` results.json ({e!r})")
 
 
 def sequence(trial):
@@ -34,7 +26,7 @@ def cell(trial):
 
 
 def main(a_path, b_path):
-    a, b = load(a_path), load(b_path)
+    a, b = trials([a_path], "compare.py"), trials([b_path], "compare.py")
     shared = sorted(k for k in a if k in b)
     if not shared:
         sys.exit("compare.py: the two files share no (method, seed) trial")
@@ -44,8 +36,7 @@ def main(a_path, b_path):
             diffs.append(a[key]["outcome"] - b[key]["outcome"])
             print(f"{method} {key[1]} {cell(a[key])}   {cell(b[key])}")
         if len(diffs) > 1:
-            se = st.stdev(diffs) / math.sqrt(len(diffs))
-            print(f"{method} mean diff {st.mean(diffs):.3f} SE {se:.3f}")
+            print(f"{method} mean diff {st.mean(diffs):.3f} SE {se(diffs):.3f}")
 
 
 if __name__ == "__main__":

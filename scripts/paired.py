@@ -20,8 +20,9 @@ import sys
 METHODS = ["dips", "dips-k1", "dips-max-likelihood"]
 
 
-def trials(paths):
-    """(method, seed) → trial over the files; a later file's trial replaces an earlier one."""
+def trials(paths, tool="paired.py"):
+    """(method, seed) → trial over the files; a later file's trial replaces an earlier one.
+    `tool` names the script in the error for a file that is not a results.json."""
     out = {}
     for path in paths:
         try:
@@ -29,7 +30,7 @@ def trials(paths):
                 for t in json.load(f)["trials"]:
                     out[(t["method"], t["seed"])] = t
         except (OSError, ValueError, KeyError, TypeError) as e:
-            sys.exit(f"paired.py: {path} is not a `dips eval` results.json ({e!r})")
+            sys.exit(f"{tool}: {path} is not a `dips eval` results.json ({e!r})")
     return out
 
 
