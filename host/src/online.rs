@@ -250,8 +250,8 @@ pub fn diffusion_particles<H: Hand + ?Sized>(
     let context: Vec<f32> = (0..n).flat_map(|_| ctx1.iter().copied()).collect();
     let s0: Vec<f32> = contract_state(&start).iter().map(|&v| v as f32).collect();
     let starts: Vec<f32> = (0..n).flat_map(|_| s0.iter().copied()).collect();
-    let invariant = dips_kernel::session::invariant_angle(hand.scene().task());
-    let out = sample_trajectories(engine, sampler, &context, &starts, invariant, rng)
+    let anchor = dips_kernel::session::start_anchor(hand.scene().task());
+    let out = sample_trajectories(engine, sampler, &context, &starts, anchor, rng)
         .with_context(|| format!("diffusion initialisation of {}", mode.name()))?;
     out.chunks_exact(td)
         .map(|t| {

@@ -199,22 +199,21 @@ pub fn models_dir(given: Option<&Path>, task: Task) -> anyhow::Result<PathBuf> {
 /// `starts` (`[n, state_dim]`, raw), drawing from `rng`; `[n, T, D]` raw rows. The sampler's
 /// chunking (at most 48 trajectories per engine call pair) does not change the bits.
 ///
-/// `invariant_angle` is an angle the task's physics does not depend on
-/// (`dips_kernel::session::invariant_angle`): each trajectory is sampled from its start with
-/// that angle clamped into the model's range and turned back, as the planner's sampler does
-/// (`DiffusionSegmentSampler::set_invariant_angle`). `None` samples the model as it is.
+/// `anchor` makes each trajectory continue from its start as the planner's sampler does
+/// (`dips_kernel::session::start_anchor`, `DiffusionSegmentSampler::set_start_anchor`);
+/// `StartAnchor::NONE` samples the model as it is.
 pub fn sample_trajectories(
     engine: &mut AnyEngine,
     config: &dips_kernel::diffusion::SamplerConfig,
     context: &[f32],
     starts: &[f32],
-    invariant_angle: Option<dips_kernel::adapters::InvariantAngle>,
+    anchor: dips_kernel::adapters::StartAnchor,
     rng: &mut dips_kernel::rng::KernelRng,
 ) -> anyhow::Result<Vec<f32>> {
     use dips_kernel::diffusion::{SampleRequest, SamplerScratch, ScratchLayout, sample};
     let dims = DenoiserEngine::dims(engine);
     let mut canonical = starts.to_vec();
-    if let Some(a) = invariant_angle {
+    if let Some(a) = anchor.clamp_angle(dims.state_dim) {
         a.clamp_starts(&mut canonical, dims.state_dim);
     }
     let n = context.len() / dims.fingers.max(1);
@@ -236,10 +235,12 @@ pub fn sample_trajectories(
         &mut out,
     )
     .map_err(|e| anyhow::anyhow!("sampling failed: {e:?}"))?;
-    if let Some(a) = invariant_angle {
-        let seg = dips_kernel::adapters::segment_dims(dims);
-        a.turn_back(&mut out, starts, &canonical, &seg);
-    }
+    anchor.apply(
+        &mut out,
+        starts,
+        context,
+        &dips_kernel::adapters::segment_dims(dims),
+    );
     Ok(out)
 }
 

@@ -83,7 +83,7 @@ pub fn run_policy_episode<H: Hand + ?Sized>(
             scene.name()
         );
     }
-    let invariant = dips_kernel::session::invariant_angle(scene.task());
+    let anchor = dips_kernel::session::start_anchor(scene.task());
     let context = vec![0f32; dims.fingers];
     let mut rng = KernelRng::seed_from_u64(seed ^ 0xd1ff_0901);
     let start = hand_state(hand);
@@ -97,7 +97,7 @@ pub fn run_policy_episode<H: Hand + ?Sized>(
             let state = hand_state(hand);
             let s0: Vec<f32> = contract_state(&state).iter().map(|&v| v as f32).collect();
             let t0 = Instant::now();
-            let out = sample_trajectories(policy, sampler, &context, &s0, invariant, &mut rng)
+            let out = sample_trajectories(policy, sampler, &context, &s0, anchor, &mut rng)
                 .context("diffusion policy sample")?;
             let solve_s = t0.elapsed().as_secs_f64();
             let dq: Vec<f64> = out[dims.state_dim..dims.state_dim + nq]

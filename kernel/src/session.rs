@@ -286,28 +286,37 @@ where
     )
 }
 
-/// The angle of `task`'s state its physics does not depend on, and the start angles the
-/// shipped models were trained at: the screwdriver's yaw (an axisymmetric handle;
-/// [`DiffusionSegmentSampler::set_invariant_angle`]), whose demos start their segments at
-/// −1.07 … 0 rad (turns) and −1.03 … −0.41 (regrasps), so starts are kept within
-/// [[`SCREWDRIVER_MODEL_YAW_MIN`], 0] (with −1.0 the search stalled, `docs/online.md`). The card's heading is not one (a rectangle at a table edge).
-pub fn invariant_angle(task: Task) -> Option<crate::adapters::InvariantAngle> {
+/// How `task`'s sampled segments are made to continue from their starts
+/// ([`DiffusionSegmentSampler::set_start_anchor`]), in the planner and in CSVTO's
+/// initialisation alike.
+///
+/// The screwdriver: its yaw is a symmetry (an axisymmetric handle); the shipped models'
+/// demos start their segments at −1.07 … 0 rad (turns) and −1.03 … −0.41 (regrasps), so
+/// starts are sampled with the yaw kept within [[`SCREWDRIVER_MODEL_YAW_MIN`], 0] (with −1.0
+/// the search stalled, `docs/online.md`); the yaw and the contact fingers' joints are anchored
+/// at the start (measured: `docs/online.md`, "Anchored at the start"). The card: nothing (its
+/// heading is no symmetry, a rectangle at a table edge; its models' first rows were not
+/// measured to jump).
+pub fn start_anchor(task: Task) -> crate::adapters::StartAnchor {
     match task {
-        Task::Screwdriver => Some(crate::adapters::InvariantAngle {
-            cos_column: task.layout().angle_cos(),
-            lo: SCREWDRIVER_MODEL_YAW_MIN,
-            hi: 0.0,
-        }),
-        Task::Card => None,
+        Task::Screwdriver => crate::adapters::StartAnchor {
+            angle: Some(crate::adapters::InvariantAngle {
+                cos_column: task.layout().angle_cos(),
+                lo: SCREWDRIVER_MODEL_YAW_MIN,
+                hi: 0.0,
+            }),
+            contact_joints: true,
+        },
+        Task::Card => crate::adapters::StartAnchor::NONE,
     }
 }
 
 /// The lowest screwdriver start yaw the planner asks the models about (rad); see
-/// [`invariant_angle`].
+/// [`start_anchor`].
 pub const SCREWDRIVER_MODEL_YAW_MIN: f32 = -0.6;
 
 /// Plan `spec` with two model engines (engines → adapters → planner): the denoiser is wrapped
-/// in the diffusion sampler with `spec.sampler` (and the task's [`invariant_angle`]), the
+/// in the diffusion sampler with `spec.sampler` (and the task's [`start_anchor`]), the
 /// discriminator in the scorer, both with buffers from `work` as `layout` splits it.
 pub fn plan_with_engines<
     const K: usize,
@@ -336,7 +345,7 @@ where
     let mut sampler =
         DiffusionSegmentSampler::new(denoiser, spec.sampler, sampler_buf, &layout.sampler)
             .map_err(SessionError::Sampler)?;
-    sampler.set_invariant_angle(invariant_angle(spec.task));
+    sampler.set_start_anchor(start_anchor(spec.task));
     let mut scorer = DiscriminatorScorer::new(discriminator, scorer_buf, &layout.scorer)
         .map_err(SessionError::Scorer)?;
     Ok(plan_with_adapters(

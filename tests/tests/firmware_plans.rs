@@ -193,10 +193,8 @@ fn in_process_with(
     let (mut sb, mut cb) = (vec![0.0f32; sl.total()], vec![0.0f32; cl.total()]);
     let mut sampler =
         DiffusionSegmentSampler::new(den, sampler_config, &mut sb, &sl).expect("sampler adapter");
-    // The task's symmetry, as every planning session applies it.
-    sampler.set_invariant_angle(dips_kernel::session::invariant_angle(Task::from(
-        request.task,
-    )));
+    // The task's start anchor, as every planning session applies it.
+    sampler.set_start_anchor(dips_kernel::session::start_anchor(Task::from(request.task)));
     let mut scorer = DiscriminatorScorer::new(disc, &mut cb, &cl).expect("scorer adapter");
     let mut planner = Box::new(PaperPlanner::new());
     plan_request(

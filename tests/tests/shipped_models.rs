@@ -144,3 +144,105 @@ fn shipped_denoisers_sample_finite_in_range_trajectories() {
         );
     }
 }
+
+/// The screwdriver's start anchor (`session::start_anchor`) on the shipped denoiser, as the
+/// planner and CSVTO's initialisation apply it: from a start yaw below the models' range, every
+/// mode's segments begin exactly at the start, row 1 repeats the start's yaw and the joints of
+/// the fingers in contact, and what the model drew is otherwise kept: the same samples without
+/// the anchor differ by one rotation of the yaw and one shift per contact joint over rows 1..,
+/// and the fingers that regrasp keep their rows bit for bit.
+#[test]
+fn screwdriver_samples_are_anchored_at_their_start() {
+    use dips_host::planning::sample_trajectories;
+    use dips_kernel::adapters::{StartAnchor, segment_dims};
+    let task = Task::Screwdriver;
+    let anchor = dips_kernel::session::start_anchor(task);
+    assert!(anchor.angle.is_some() && anchor.contact_joints);
+    let mut m = Models::load(EngineKind::Kernel, &dir(task), task).unwrap();
+    let engine = &mut m.denoiser;
+    let dims = DenoiserEngine::dims(engine);
+    let (sd, d, f, td) = (
+        dims.state_dim,
+        dims.state_dim + dims.action_dim,
+        dims.fingers,
+        dims.floats_per_trajectory(),
+    );
+    let c = task.layout().angle_cos();
+    let mut start = engine.normalization().mean[..sd].to_vec();
+    let yaw0 = -1.4f32;
+    (start[c], start[c + 1]) = (yaw0.cos(), yaw0.sin());
+    let modes: Vec<_> = task.candidate_modes().collect();
+    let n = 4 * modes.len();
+    let mut context = vec![0f32; n * f];
+    for (i, row) in context.chunks_mut(f).enumerate() {
+        task.contact_mode(modes[i % modes.len()])
+            .unwrap()
+            .write_signs(row);
+    }
+    let starts: Vec<f32> = (0..n).flat_map(|_| start.clone()).collect();
+    let sampler = SamplerConfig::ddim(8);
+    let anchored = sample_trajectories(
+        engine,
+        &sampler,
+        &context,
+        &starts,
+        anchor,
+        &mut KernelRng::seed_from_u64(3),
+    )
+    .unwrap();
+    let mut clamped = starts.clone();
+    anchor
+        .clamp_angle(sd)
+        .unwrap()
+        .clamp_starts(&mut clamped, sd);
+    let raw = sample_trajectories(
+        engine,
+        &sampler,
+        &context,
+        &clamped,
+        StartAnchor::NONE,
+        &mut KernelRng::seed_from_u64(3),
+    )
+    .unwrap();
+    assert!(anchor.is_active(&segment_dims(dims)));
+    let yaw = |row: &[f32]| row[c + 1].atan2(row[c]);
+    let wrap = |a: f32| {
+        (a + std::f32::consts::PI).rem_euclid(std::f32::consts::TAU) - std::f32::consts::PI
+    };
+    let mut jumps = 0.0f32;
+    for ((seg, raw), signs) in anchored
+        .chunks(td)
+        .zip(raw.chunks(td))
+        .zip(context.chunks(f))
+    {
+        assert_eq!(seg[..sd], start[..], "row 0 is the start");
+        assert!(
+            (wrap(yaw(&seg[d..]) - yaw0)).abs() < 1e-4,
+            "row 1 repeats the yaw"
+        );
+        let turn = wrap(yaw(&seg[d..]) - yaw(&raw[d..]));
+        for t in 1..dims.horizon {
+            let (a, r) = (&seg[t * d..(t + 1) * d], &raw[t * d..(t + 1) * d]);
+            assert!(
+                (wrap(yaw(a) - yaw(r)) - turn).abs() < 1e-4,
+                "one rotation, row {t}"
+            );
+            for (i, &sign) in signs.iter().enumerate() {
+                for j in 4 * i..4 * i + 4 {
+                    if sign > 0.0 {
+                        let shift = start[j] - raw[d + j];
+                        assert!((a[j] - (r[j] + shift)).abs() < 1e-5, "contact joint {j}");
+                        jumps += (raw[d + j] - start[j]).abs();
+                    } else {
+                        assert_eq!(a[j], r[j], "a regrasping finger's joint {j} as drawn");
+                    }
+                }
+            }
+            assert_eq!(a[sd..], r[sd..], "the actions as drawn");
+        }
+    }
+    assert!(
+        jumps > 0.0,
+        "the raw model's row 1 moved the contact joints"
+    );
+}

@@ -18,9 +18,11 @@
 //!   states, and the mean absolute difference.
 //!
 //! From each start state it samples 64 segments of the mode as the planner does (`--sampler`,
-//! default `dips_cli::search_args::DEFAULT_SAMPLER`, the task's invariant angle; `--guidance W`,
-//! `--noise-factor F` and `--yaw-min RAD` change the guidance weight, DDPM's noise factor and
-//! the lowest start yaw the models are asked about) and prints: the executed and the mean
+//! default `dips_cli::search_args::DEFAULT_SAMPLER`, the task's start anchor
+//! `dips_kernel::session::start_anchor`; `--guidance W`, `--noise-factor F` and `--yaw-min RAD`
+//! change the guidance weight, DDPM's noise factor and the lowest start yaw the models are asked
+//! about; `--raw` keeps the models' rows as drawn, only the yaw clamped, as the committed
+//! mode-probe tables measured them) and prints: the executed and the mean
 //! diffused change of the task's progress coordinate (yaw in rad, card y in m), the mean
 //! first-step joint jump `‖q₁ − q₀‖` of the
 //! diffused segments (the model's start consistency), the share of segments with a joint more
@@ -42,13 +44,13 @@ use anyhow::{Context, bail};
 use dips_cli::output::line;
 use dips_host::planning::{Models, models_dir, parse_sampler, sample_trajectories};
 use dips_host::problems::contract::contract_state;
-use dips_kernel::adapters::InvariantAngle;
+use dips_kernel::adapters::StartAnchor;
 use dips_kernel::diffusion::SamplerConfig;
 use dips_kernel::diffusion::normalize::normalize_in_place;
 use dips_kernel::engine::DiscriminatorEngine;
 use dips_kernel::mode::{Task, TaskMode};
 use dips_kernel::rng::KernelRng;
-use dips_kernel::session::invariant_angle;
+use dips_kernel::session::start_anchor;
 
 /// Segments sampled per start state.
 const SAMPLES: usize = 64;
@@ -105,6 +107,8 @@ struct Setup {
     models_arg: Option<PathBuf>,
     sampler: SamplerConfig,
     yaw_min: Option<f32>,
+    /// Sample without the start anchor (only the yaw clamped): the models' rows as drawn.
+    raw: bool,
     /// Print the mean change of the progress coordinate at every row.
     profile: bool,
     /// Probe every mode of the task at each executed start, not only the executed one.
@@ -119,6 +123,7 @@ fn probe() -> anyhow::Result<()> {
     let mut noise: Option<f32> = None;
     let mut yaw_min: Option<f32> = None;
     let mut profile = false;
+    let mut raw = false;
     let mut all_modes = false;
     let mut demos: Option<PathBuf> = None;
     let mut task_arg: Option<String> = None;
@@ -140,6 +145,7 @@ fn probe() -> anyhow::Result<()> {
             "--limit" => filter.limit = Some(value("a count")?.parse()?),
             "--held-out" => filter.held_out = true,
             "--profile" => profile = true,
+            "--raw" => raw = true,
             "--all-modes" => all_modes = true,
             _ if a.starts_with("--") => bail!("unknown option {a}"),
             _ => files.push(PathBuf::from(a)),
@@ -163,6 +169,7 @@ fn probe() -> anyhow::Result<()> {
         models_arg,
         sampler,
         yaw_min,
+        raw,
         profile,
         all_modes,
     };
@@ -180,7 +187,7 @@ fn probe() -> anyhow::Result<()> {
         }
         None if files.is_empty() => bail!(
             "usage: mode_probe [--models DIR] [--sampler S] [--guidance W] [--noise-factor F] [--yaw-min RAD] \
-             [--profile] \
+             [--raw] [--profile] \
              ([--all-modes] RESULT.json ... | --demos DIR [--task T] [--mode M] [--after M|start] [--below X] \
              [--held-out] [--limit N])"
         ),
@@ -386,18 +393,16 @@ fn probe_runs(
 ) -> anyhow::Result<()> {
     let mut models = Models::load(dips_onnx::EngineKind::Kernel, models_dir, task)?;
     let limits = joint_limits(columns);
-    let angle = invariant_angle(task).map(|mut a| {
-        if let Some(lo) = setup.yaw_min {
-            a.lo = lo;
-        }
-        a
-    });
+    let mut anchor = start_anchor(task);
+    if let (Some(a), Some(lo)) = (anchor.angle.as_mut(), setup.yaw_min) {
+        a.lo = lo;
+    }
     let progress = progress_index(task);
     let mut summary: Vec<(f32, f32, f32, f32, f32)> = Vec::new();
     for run in runs {
         let nq = run.start.len() - 3;
         let run_limits = limits.as_deref().filter(|l| l.len() == nq);
-        let p = probe_one(&mut models, &setup.sampler, angle, task, run, run_limits)?;
+        let p = probe_one(&mut models, setup, anchor, task, run, run_limits)?;
         let executed = (run.end[nq + progress] - run.start[nq + progress]) as f32;
         let limits_note = if run_limits.is_some() {
             format!(
@@ -472,8 +477,8 @@ fn fmt_profile(profile: &[f32]) -> String {
 /// Sample [`SAMPLES`] segments of `run`'s mode from its start state and measure them.
 fn probe_one(
     models: &mut Models,
-    sampler: &SamplerConfig,
-    angle: Option<InvariantAngle>,
+    setup: &Setup,
+    anchor: StartAnchor,
     task: Task,
     run: &Run,
     limits: Option<&[(f32, f32)]>,
@@ -497,14 +502,24 @@ fn probe_one(
     let mut ctx = vec![0f32; f];
     run.mode.contact_mode().write_signs(&mut ctx);
     let context: Vec<f32> = ctx.iter().copied().cycle().take(SAMPLES * f).collect();
-    let starts: Vec<f32> = state.iter().copied().cycle().take(SAMPLES * sd).collect();
+    let mut starts: Vec<f32> = state.iter().copied().cycle().take(SAMPLES * sd).collect();
+    // Raw: the yaw clamped, nothing anchored; the changes below are relative to row 0, so the
+    // clamp does not bias them.
+    let anchor = if setup.raw {
+        if let Some(a) = anchor.clamp_angle(sd) {
+            a.clamp_starts(&mut starts, sd);
+        }
+        StartAnchor::NONE
+    } else {
+        anchor
+    };
     let mut rng = KernelRng::seed_from_u64(7);
     let out = sample_trajectories(
         &mut models.denoiser,
-        sampler,
+        &setup.sampler,
         &context,
         &starts,
-        angle,
+        anchor,
         &mut rng,
     )?;
     let stats = segment_stats(task, dims, nq, out.chunks(td));

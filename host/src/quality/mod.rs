@@ -336,15 +336,15 @@ fn sample_like(
         .chunks_exact(td)
         .flat_map(|t| t[..sd].iter().copied())
         .collect();
-    // The model as trained, at the data's own start states (the planner's sampler also uses
-    // the screwdriver's yaw symmetry, which leaves starts inside the data's yaws alone).
-    let invariant = None;
+    // The model as trained, at the data's own start states, nothing anchored: the quality
+    // report measures the model's own rows (the planner's start anchor, `session::start_anchor`,
+    // would hide the first-row jump it reports).
     sample_trajectories(
         engine,
         config,
         context,
         &starts,
-        invariant,
+        dips_kernel::adapters::StartAnchor::NONE,
         &mut KernelRng::seed_from_u64(seed),
     )
 }

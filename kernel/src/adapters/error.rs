@@ -58,7 +58,7 @@ pub enum AdapterBuffer {
     Segments,
     /// The diffusion sampler's scratch.
     Sampler,
-    /// The start states with their invariant angle set to zero (`n·state_dim`).
+    /// The start states with a symmetry angle clamped (`n·state_dim`).
     Starts,
 }
 

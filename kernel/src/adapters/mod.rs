@@ -9,12 +9,14 @@
 //! and nothing allocates. A model whose sizes differ from the problem's is refused with a
 //! typed [`DimsMismatch`] (and the planner reports `InvalidProblem` before sampling).
 
+pub mod anchor;
 pub mod error;
 pub mod sampler;
 pub mod scorer;
 
+pub use anchor::{InvariantAngle, StartAnchor};
 pub use error::{AdapterBuffer, AdapterError, DimField, DimsMismatch, SegmentModelError};
-pub use sampler::{DiffusionSegmentSampler, InvariantAngle, SamplerAdapterLayout};
+pub use sampler::{DiffusionSegmentSampler, SamplerAdapterLayout};
 pub use scorer::{DiscriminatorScorer, ScorerAdapterLayout};
 
 use crate::engine::ModelDims;

@@ -1,5 +1,6 @@
 //! [`DiffusionSegmentSampler`]: the search's sampler `M(c, s₀)` over a denoiser engine.
 
+use super::anchor::StartAnchor;
 use super::check_dims;
 use super::error::{AdapterBuffer, AdapterError, DimsMismatch, SegmentModelError};
 use crate::diffusion::{
@@ -17,8 +18,8 @@ pub struct SamplerAdapterLayout {
     pub max_segments: usize,
     /// The contact-mode rows, `max_segments · F`.
     pub context: usize,
-    /// The start states with an invariant angle zeroed, `max_segments · state_dim`
-    /// ([`DiffusionSegmentSampler::set_invariant_angle`]).
+    /// The start states with a symmetry angle clamped, `max_segments · state_dim`
+    /// ([`DiffusionSegmentSampler::set_start_anchor`]).
     pub starts: usize,
     /// The diffusion sampler's scratch.
     pub sampler: ScratchLayout,
@@ -59,7 +60,7 @@ pub struct DiffusionSegmentSampler<'s, E> {
     scratch: SamplerScratch<'s>,
     context: &'s mut [f32],
     starts: &'s mut [f32],
-    invariant_angle: Option<InvariantAngle>,
+    anchor: StartAnchor,
     capacity: usize,
 }
 
@@ -111,25 +112,29 @@ impl<'s, E: DenoiserEngine> DiffusionSegmentSampler<'s, E> {
             scratch,
             context,
             starts: &mut [],
-            invariant_angle: None,
+            anchor: StartAnchor::NONE,
             capacity,
         })
     }
 
-    /// Declare an angle of the state a symmetry of the task (`None`, the default: none).
+    /// How each sampled segment is made to continue from its start ([`StartAnchor`]; the
+    /// default, [`StartAnchor::NONE`], returns segments as the model draws them).
     ///
-    /// The screwdriver's handle is a solid of revolution and its yaw is applied last
-    /// (`Rx(roll)·Ry(pitch)·Rz(yaw)`), so a state and the same state with another yaw are the
-    /// same physical situation: the same contacts, forces and costs (regrasp targets and goals
-    /// are relative to the yaw). A segment whose start angle lies outside `[lo, hi]`, the
-    /// angles the model was trained at, is sampled from its start with the angle clamped into
-    /// them, and every row's angle is turned back by the difference. Without it a model
-    /// trained on episodes that start at yaw 0 (no yaw augmentation) is asked about yaws it has
-    /// not seen: measured, from yaws below −1 rad its turns barely turned, and the search
-    /// stopped with three or four of seven modes left. Row 0's state stays exactly the given
-    /// start; inside `[lo, hi]` nothing changes.
-    pub fn set_invariant_angle(&mut self, angle: Option<InvariantAngle>) {
-        self.invariant_angle = angle;
+    /// The screwdriver's (`crate::session::start_anchor`): its handle is a solid of
+    /// revolution and its yaw is applied last (`Rx(roll)·Ry(pitch)·Rz(yaw)`), so a state and
+    /// the same state with another yaw are the same physical situation (regrasp targets and
+    /// goals are relative to the yaw). A segment whose start yaw lies outside the yaws the
+    /// model was trained at is sampled with the yaw clamped into them: without it, from yaws
+    /// below −1 rad the turns barely turned and the search stalled. Then every segment's yaw
+    /// and its contact fingers' joints are anchored at the start: row 1 repeats the start's,
+    /// so the model's first-row jump (up to 0.36 rad of yaw, measured) is not read as progress.
+    pub fn set_start_anchor(&mut self, anchor: StartAnchor) {
+        self.anchor = anchor;
+    }
+
+    /// The start anchor in use.
+    pub fn start_anchor(&self) -> StartAnchor {
+        self.anchor
     }
 
     /// The sampler settings.
@@ -242,8 +247,8 @@ impl<E: DenoiserEngine> SegmentSampler for DiffusionSegmentSampler<'_, E> {
             })?;
         write_context(modes, fingers, context)?;
         let sd = dims.state_dim;
-        let turned = match self.invariant_angle {
-            Some(a) if a.cos_column + 1 < sd => {
+        let clamped = match self.anchor.clamp_angle(sd) {
+            Some(a) => {
                 let got = self.starts.len();
                 let clamped =
                     self.starts
@@ -255,15 +260,16 @@ impl<E: DenoiserEngine> SegmentSampler for DiffusionSegmentSampler<'_, E> {
                         })?;
                 clamped.copy_from_slice(starts);
                 a.clamp_starts(clamped, sd);
-                Some(a)
+                true
             }
-            _ => None,
+            None => false,
         };
         let request = SampleRequest {
             context,
-            start_states: Some(match turned {
-                Some(_) => &self.starts[..n * sd],
-                None => starts,
+            start_states: Some(if clamped {
+                &self.starts[..n * sd]
+            } else {
+                starts
             }),
         };
         sample(
@@ -275,123 +281,8 @@ impl<E: DenoiserEngine> SegmentSampler for DiffusionSegmentSampler<'_, E> {
             out,
         )
         .map_err(SegmentModelError::Sample)?;
-        if let Some(a) = turned {
-            a.turn_back(out, starts, &self.starts[..n * sd], dims);
-        }
+        self.anchor
+            .apply(out, starts, &self.context[..n * fingers], dims);
         Ok(())
-    }
-}
-
-/// An angle the task's physics does not depend on, and the angles the model knows it at
-/// ([`DiffusionSegmentSampler::set_invariant_angle`]).
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct InvariantAngle {
-    /// State column of the angle's `cos` (its `sin` follows).
-    pub cos_column: usize,
-    /// The smallest start angle the model is asked about (radians).
-    pub lo: f32,
-    /// The largest start angle the model is asked about (radians).
-    pub hi: f32,
-}
-
-impl InvariantAngle {
-    /// Move the angle of every start in `starts` (rows of `state_dim`) into `[lo, hi]`.
-    pub fn clamp_starts(&self, starts: &mut [f32], state_dim: usize) {
-        let c = self.cos_column;
-        for s in starts.chunks_mut(state_dim) {
-            let a = libm::atan2f(s[c + 1], s[c]);
-            let k = a.clamp(self.lo, self.hi);
-            if k != a {
-                s[c] = libm::cosf(k);
-                s[c + 1] = libm::sinf(k);
-            }
-        }
-    }
-
-    /// Turn every row's angle of each segment in `out`, sampled from `clamped` (the starts
-    /// after [`Self::clamp_starts`]), by its start's angle in `starts` minus the clamped one,
-    /// and put the start's exact `(cos, sin)` back into row 0.
-    pub fn turn_back(&self, out: &mut [f32], starts: &[f32], clamped: &[f32], dims: &SegmentDims) {
-        let c = self.cos_column;
-        let d = dims.dim();
-        let sd = dims.state_dim;
-        for ((seg, start), k) in out
-            .chunks_mut(dims.floats())
-            .zip(starts.chunks(sd))
-            .zip(clamped.chunks(sd))
-        {
-            let (cs, ss) = (start[c], start[c + 1]);
-            let (ck, sk) = (k[c], k[c + 1]);
-            if (cs, ss) == (ck, sk) {
-                continue;
-            }
-            // The rotation from the clamped angle to the start's.
-            let n = libm::sqrtf((cs * cs + ss * ss) * (ck * ck + sk * sk)).max(f32::MIN_POSITIVE);
-            let c0 = (cs * ck + ss * sk) / n;
-            let s0 = (ss * ck - cs * sk) / n;
-            for row in seg.chunks_mut(d) {
-                let (cr, sr) = (row[c], row[c + 1]);
-                row[c] = cr * c0 - sr * s0;
-                row[c + 1] = sr * c0 + cr * s0;
-            }
-            seg[c] = cs;
-            seg[c + 1] = ss;
-        }
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    extern crate std;
-    use super::*;
-    use std::vec::Vec;
-
-    fn yaw(row: &[f32], c: usize) -> f32 {
-        libm::atan2f(row[c + 1], row[c])
-    }
-
-    #[test]
-    fn an_invariant_angle_is_clamped_for_the_model_and_turned_back() {
-        let dims = SegmentDims {
-            horizon: 2,
-            state_dim: 4,
-            action_dim: 1,
-            fingers: 1,
-        };
-        let a = InvariantAngle {
-            cos_column: 2,
-            lo: -0.6,
-            hi: 0.0,
-        };
-        let row = |q: f32, y: f32| [q, 0.5, libm::cosf(y), libm::sinf(y), 0.0];
-        // Two starts: one inside [lo, hi], one below it.
-        let starts: Vec<f32> = [row(0.1, -0.3), row(0.2, -1.4)]
-            .iter()
-            .flat_map(|r| r[..4].to_vec())
-            .collect();
-        let mut clamped = starts.clone();
-        a.clamp_starts(&mut clamped, 4);
-        assert_eq!(clamped[..4], starts[..4], "inside the range nothing moves");
-        assert!((yaw(&clamped[4..], 2) - -0.6).abs() < 1e-6);
-        assert_eq!(clamped[4..6], starts[4..6], "only the angle moves");
-        // What the model would return from the clamped starts: row 1 turned by −0.3 more.
-        let mut out: Vec<f32> = [(0.1, -0.3), (0.2, -0.6)]
-            .iter()
-            .flat_map(|&(q, y)| {
-                let mut seg = row(q, y).to_vec();
-                seg.extend(row(q, y - 0.3));
-                seg
-            })
-            .collect();
-        let before = out.clone();
-        a.turn_back(&mut out, &starts, &clamped, &dims);
-        assert_eq!(
-            out[..10],
-            before[..10],
-            "an unclamped segment is left alone"
-        );
-        let seg = &out[10..];
-        assert_eq!(seg[..4], starts[4..8], "row 0 is exactly the start");
-        assert!((yaw(&seg[5..], 2) - (-1.4 - 0.3)).abs() < 1e-5);
     }
 }
