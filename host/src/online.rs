@@ -132,7 +132,7 @@ pub struct OnlineSettings {
     /// Wall-clock budget of one planning call (s); the best node so far when it runs out.
     pub time_budget_s: f64,
     /// Most node expansions per planning call (0: the planner's capacity).
-    pub node_budget: u32,
+    pub node_budget: Option<u32>,
     /// Sampler of the search's edges and of CSVTO's initialisation.
     pub sampler: SamplerConfig,
     /// The sequence a fixed-sequence method executes instead of the prior's draw.
@@ -152,7 +152,8 @@ pub enum SearchDepth {
     /// The task's mode limit on every call (7 / 5), whatever the episode has left: the
     /// paper's screwdriver ("the same depth of 7 throughout the task").
     Fixed,
-    /// The modes the episode has left (the limit less the modes executed): the paper's card.
+    /// The modes the episode has left (the limit less the modes executed): the paper's card,
+    /// and ours for both tasks.
     ModesLeft,
 }
 
@@ -160,11 +161,12 @@ impl SearchDepth {
     /// Both rules, in `--search-depth` order.
     pub const ALL: [Self; 2] = [Self::Fixed, Self::ModesLeft];
 
-    /// The task's rule (`docs/online.md`, "Search depth").
+    /// The task's rule (`docs/online.md`, "Search depth"): the modes left for both. The
+    /// screwdriver departs from the paper's fixed depth since its segments are anchored at
+    /// their starts (`dips_kernel::session::start_anchor`), measured there.
     pub fn for_task(scene: SceneKind) -> Self {
         match scene {
-            SceneKind::Screwdriver => Self::Fixed,
-            SceneKind::Card => Self::ModesLeft,
+            SceneKind::Screwdriver | SceneKind::Card => Self::ModesLeft,
         }
     }
 
@@ -192,7 +194,7 @@ impl Default for OnlineSettings {
     fn default() -> Self {
         Self {
             time_budget_s: 300.0,
-            node_budget: 0,
+            node_budget: None,
             sampler: SamplerConfig::default(),
             sequence: None,
             max_modes: None,
@@ -273,7 +275,7 @@ fn search_config(
     let base = SearchConfig::for_task(task);
     let mut c = SearchConfig {
         max_depth: depth,
-        node_budget: settings.node_budget,
+        node_budget: settings.node_budget.unwrap_or(base.node_budget),
         time_budget_ms: time_budget_ms(settings.time_budget_s),
         seed,
         cost_to_come: settings.cost_to_come.unwrap_or(base.cost_to_come),
@@ -528,9 +530,8 @@ mod tests {
         assert_eq!(SearchDepth::ModesLeft.depth(5, 3), 2);
         // Never 0: a call is only made with a mode left, but the depth stays a valid search.
         assert_eq!(SearchDepth::ModesLeft.depth(5, 5), 1);
-        assert_eq!(
-            SearchDepth::for_task(SceneKind::Card),
-            SearchDepth::ModesLeft
-        );
+        for scene in [SceneKind::Screwdriver, SceneKind::Card] {
+            assert_eq!(SearchDepth::for_task(scene), SearchDepth::ModesLeft);
+        }
     }
 }

@@ -88,7 +88,7 @@ pub fn run(args: &PlanBenchArgs) -> anyhow::Result<()> {
         let config = SearchConfig {
             seed: args.seed + u64::from(i),
             time_budget_ms,
-            node_budget: args.search.node_budget,
+            node_budget: args.search.node_budget_or(&base),
             cost_to_come,
             ..base
         };

@@ -87,7 +87,7 @@ pub fn search_config(task: Task, args: &PlanArgs) -> anyhow::Result<SearchConfig
     let config = SearchConfig {
         k: args.k,
         max_depth: args.depth.unwrap_or(base.max_depth),
-        node_budget: args.search.node_budget,
+        node_budget: args.search.node_budget_or(&base),
         time_budget_ms: args.search.time_budget_ms()?,
         seed: args.seed,
         cost_to_come: args.search.cost_to_come().unwrap_or(base.cost_to_come),

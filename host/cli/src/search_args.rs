@@ -80,9 +80,10 @@ pub struct SearchArgs {
     /// Wall-clock budget of each planning call in seconds (0: none; the paper's: 300).
     #[arg(long, default_value_t = 300.0)]
     pub time_budget_s: f64,
-    /// Most node expansions per planning call (0: the planner's capacity).
-    #[arg(long, default_value_t = 0)]
-    pub node_budget: u32,
+    /// Most node expansions per planning call (0: the planner's capacity). Default: the
+    /// task's (screwdriver 13, card 0; `docs/search.md`, "Node budget").
+    #[arg(long)]
+    pub node_budget: Option<u32>,
     /// How the search forms the cost-to-come `g`: `cumulative` (the paper's equation) or
     /// `last-segment` (the authors' code). Default: the task's (`docs/search.md`).
     #[arg(long, value_enum)]
@@ -104,6 +105,11 @@ impl SearchArgs {
     /// ([`dips_host::online::time_budget_ms`]).
     pub fn time_budget_ms(&self) -> anyhow::Result<u32> {
         Ok(dips_host::online::time_budget_ms(self.time_budget_s()?))
+    }
+
+    /// `--node-budget` when given, else the task's ([`SearchConfig::for_task`]).
+    pub fn node_budget_or(&self, base: &dips_kernel::search::SearchConfig) -> u32 {
+        self.node_budget.unwrap_or(base.node_budget)
     }
 
     /// `--cost-to-come` when given; `None` leaves the task's.
@@ -134,7 +140,15 @@ mod tests {
         let a = parse(&[]).unwrap();
         assert_eq!(a.sampler, DEFAULT_SAMPLER);
         assert_eq!(a.time_budget_ms().unwrap(), 300_000);
-        assert_eq!(a.node_budget, 0);
+        assert_eq!(a.node_budget, None);
+        use dips_kernel::mode::Task;
+        use dips_kernel::search::SearchConfig;
+        let (sd, card) = (
+            SearchConfig::for_task(Task::Screwdriver),
+            SearchConfig::for_task(Task::Card),
+        );
+        assert_eq!(a.node_budget_or(&sd), 13, "the screwdriver's own budget");
+        assert_eq!(a.node_budget_or(&card), 0);
         assert_eq!(a.cost_to_come(), None);
         assert_eq!(
             a.sampler_config().unwrap(),
@@ -156,7 +170,11 @@ mod tests {
         ])
         .unwrap();
         assert_eq!(a.time_budget_ms().unwrap(), 250);
-        assert_eq!(a.node_budget, 7);
+        assert_eq!(a.node_budget, Some(7));
+        let sd = dips_kernel::search::SearchConfig::for_task(dips_kernel::mode::Task::Screwdriver);
+        assert_eq!(a.node_budget_or(&sd), 7, "a given budget wins");
+        let none = parse(&["--node-budget", "0"]).unwrap();
+        assert_eq!(none.node_budget_or(&sd), 0, "0 lifts the task's budget");
         assert_eq!(a.cost_to_come(), Some(CostToCome::LastSegment));
         assert!(a.sampler_config().is_ok());
 

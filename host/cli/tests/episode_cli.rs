@@ -154,8 +154,9 @@ fn a_short_dips_screwdriver_episode_plans_executes_and_replans() {
     );
     for (i, p) in plans.iter().enumerate() {
         assert_eq!(p["modes"][0], modes[i], "plan {i}");
-        // The screwdriver searches the paper's depth 7 from every state; its goal is the
-        // measured yaw − π/3.
+        // The screwdriver searches the modes the episode has left (7, then 6; `--max-modes`
+        // does not change it); its goal is the measured yaw − π/3.
+        assert_eq!(p["depth"].as_u64(), Some(7 - i as u64), "plan {i}");
         assert!(p["goal"].as_f64().unwrap() < 0.0);
     }
     // Each mode ran 12 CSVTO steps from diffusion samples.

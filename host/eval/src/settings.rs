@@ -22,7 +22,8 @@ pub struct EpisodeSettings {
     pub sampler: String,
     /// Wall-clock budget of one planning call (s).
     pub time_budget_s: f64,
-    /// Most expansions per planning call (0: the planner's capacity).
+    /// Most expansions per planning call (0: the planner's capacity); the task's when none
+    /// was given.
     pub node_budget: u32,
     /// Mode limit per episode (`None`: the task's).
     pub max_modes: Option<usize>,
@@ -154,7 +155,10 @@ impl EvalSettings {
             task: self.task.name().to_string(),
             sampler: self.sampler.clone(),
             time_budget_s: self.online.time_budget_s,
-            node_budget: self.online.node_budget,
+            node_budget: self
+                .online
+                .node_budget
+                .unwrap_or(SearchConfig::for_task(self.task.task()).node_budget),
             max_modes: self.online.max_modes,
             cost_to_come: self
                 .online

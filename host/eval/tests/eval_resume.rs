@@ -32,7 +32,7 @@ fn settings(methods: Vec<Method>, trials: usize) -> EvalSettings {
         sampler: "ddim:8".into(),
         online: OnlineSettings {
             time_budget_s: 60.0,
-            node_budget: 3,
+            node_budget: Some(3),
             sampler: parse_sampler("ddim:8").unwrap(),
             sequence: None,
             max_modes: Some(1),
