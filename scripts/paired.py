@@ -1,7 +1,9 @@
 #!/usr/bin/env python3
 """Paired comparison of `dips` with k = 1 and max-likelihood (either task).
 
-Usage: scripts/paired.py RESULTS.json [RESULTS.json ...]
+Usage: scripts/paired.py [--all] RESULTS.json [RESULTS.json ...]
+
+`--all` compares `dips` with every method in the files instead (the main table's paired column).
 
 Reads the `results.json` of one or more `dips eval` runs (trials of the same method and seed
 in a later file replace earlier ones) and prints, over the seeds every method ran: each method's
@@ -38,23 +40,32 @@ def se(xs):
     return st.stdev(xs) / math.sqrt(len(xs))
 
 
-def main(paths):
+def main(args):
+    every = "--all" in args
+    paths = [a for a in args if a != "--all"]
     if not paths:
-        sys.exit("usage: scripts/paired.py RESULTS.json [RESULTS.json ...]")
+        sys.exit("usage: scripts/paired.py [--all] RESULTS.json [RESULTS.json ...]")
     by = trials(paths)
+    methods = METHODS
+    if every:
+        others = []
+        for (m, _) in by:
+            if m != "dips" and m not in others:
+                others.append(m)
+        methods = ["dips"] + others
     # Paired: only the seeds every method ran.
-    seeds = sorted(s for (m, s) in by if m == METHODS[0] and all((o, s) in by for o in METHODS))
+    seeds = sorted(s for (m, s) in by if m == methods[0] and all((o, s) in by for o in methods))
     if len(seeds) < 2:
         sys.exit("paired.py: fewer than two seeds that every method ran")
     print("seeds", seeds[0], "..", seeds[-1], len(seeds))
-    out = {m: [by[(m, s)]["outcome"] for s in seeds] for m in METHODS}
-    for m in METHODS:
+    out = {m: [by[(m, s)]["outcome"] for s in seeds] for m in methods}
+    for m in methods:
         valid = sum(by[(m, s)]["valid"] for s in seeds)
         xs = out[m]
         print(f"{m:22s} valid {valid}/{len(xs)} mean {st.mean(xs):.4f} ± SE {se(xs):.4f} "
               f"median {st.median(xs):.4f}")
-    for m in METHODS[1:]:
-        diff = [a - b for a, b in zip(out[METHODS[0]], out[m])]
+    for m in methods[1:]:
+        diff = [a - b for a, b in zip(out[methods[0]], out[m])]
         mean = st.mean(diff)
         better = sum(d < -1e-9 for d in diff)
         equal = sum(abs(d) <= 1e-9 for d in diff)
