@@ -107,7 +107,7 @@ impl SearchArgs {
         Ok(dips_host::online::time_budget_ms(self.time_budget_s()?))
     }
 
-    /// `--node-budget` when given, else the task's ([`SearchConfig::for_task`]).
+    /// `--node-budget` when given, else the task's ([`dips_kernel::search::SearchConfig::for_task`]).
     pub fn node_budget_or(&self, base: &dips_kernel::search::SearchConfig) -> u32 {
         self.node_budget.unwrap_or(base.node_budget)
     }
