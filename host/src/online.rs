@@ -2,9 +2,10 @@
 //! ablations, each an episode in which contact modes are chosen and CSVTO is initialised.
 //!
 //! - **DIPS** (`dips`): before each mode, one A* planning call in the kernel from the measured
-//!   state (goal: yaw − π/3, card y = −6 cm; the search depth: [`SearchDepth`]); the first
-//!   planned mode is executed by CSVTO initialised with fresh diffusion samples conditioned on
-//!   the mode and the state; then replan. The episode stops at the mode limit (7 / 5) or
+//!   state (goal: yaw − π/3, card y = −6 cm; the search depth: [`SearchDepth`], the modes
+//!   left); the first planned mode is executed by CSVTO initialised with fresh diffusion
+//!   samples conditioned on the mode and the state, anchored at it as the search's are
+//!   (`dips_kernel::session::start_anchor`); then replan. The episode stops at the mode limit (7 / 5) or
 //!   when a plan holds no mode.
 //! - `dips-k1` (one particle per node), `dips-max-likelihood` (single trajectory per node, the
 //!   best-scored of k samples kept): the same loop with the search changed.
