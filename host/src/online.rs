@@ -5,8 +5,8 @@
 //!   state (goal: yaw − π/3, card y = −6 cm; the search depth: [`SearchDepth`], the modes
 //!   left); the first planned mode is executed by CSVTO initialised with fresh diffusion
 //!   samples conditioned on the mode and the state, anchored at it as the search's are
-//!   (`dips_kernel::session::start_anchor`); then replan. The episode stops at the mode limit (7 / 5) or
-//!   when a plan holds no mode.
+//!   (`dips_kernel::session::start_anchor`); then replan. The episode stops at the mode limit
+//!   (7 / 5) or when a plan holds no mode.
 //! - `dips-k1` (one particle per node), `dips-max-likelihood` (single trajectory per node, the
 //!   best-scored of k samples kept): the same loop with the search changed.
 //! - `dips-no-replan`: one planning call (screwdriver goal fixed at −1.7 rad), its whole plan
@@ -132,7 +132,8 @@ pub fn time_budget_ms(seconds: f64) -> u32 {
 pub struct OnlineSettings {
     /// Wall-clock budget of one planning call (s); the best node so far when it runs out.
     pub time_budget_s: f64,
-    /// Most node expansions per planning call (0: the planner's capacity).
+    /// Most node expansions per planning call (0: the planner's capacity; `None`: the task's,
+    /// [`SearchConfig::for_task`]).
     pub node_budget: Option<u32>,
     /// Sampler of the search's edges and of CSVTO's initialisation.
     pub sampler: SamplerConfig,
