@@ -8,7 +8,7 @@ use std::sync::Arc;
 use dips_world::hand::{Hand, HandError, ObjectPose};
 use dips_world::kinematics::{Finger, HandJoints, HandModel};
 use dips_world::scenes::{SceneKind, screwdriver};
-use dips_world::world::{World, WorldError};
+use dips_world::world::{ContactReport, World, WorldError};
 use mujoco_rs::prelude::*;
 use nalgebra::{Isometry3, Quaternion, Translation3, UnitQuaternion, Vector3};
 
@@ -300,6 +300,62 @@ impl MujocoHand {
         ObjectPose { pose, coords }
     }
 
+    /// The contacts MuJoCo found at the current state, in our report's form: `finger` is the
+    /// pushing body (a fingertip's finger, or `card` on the table), `part` the touched geom,
+    /// `point` on the part's surface, `normal` out of the part, `force` exerted by `finger`
+    /// on `part` (world frame, N) and `phi` the signed distance (negative: penetration).
+    pub fn contacts(&self) -> Vec<ContactReport> {
+        let model = self.data.model();
+        let name = |g: i32| {
+            usize::try_from(g)
+                .ok()
+                .and_then(|g| model.id_to_name(MjtObjBase::mjOBJ_GEOM, g))
+                .unwrap_or("?")
+                .to_string()
+        };
+        self.data
+            .contact()
+            .iter()
+            .enumerate()
+            .map(|(i, c)| {
+                let (g1, g2) = (name(c.geom1), name(c.geom2));
+                // The frame's first row is the normal, from geom1 to geom2; the force in the
+                // contact frame is what geom1 exerts on geom2.
+                let n = Vector3::new(c.frame[0], c.frame[1], c.frame[2]);
+                let t1 = Vector3::new(c.frame[3], c.frame[4], c.frame[5]);
+                let t2 = Vector3::new(c.frame[6], c.frame[7], c.frame[8]);
+                let f = self.data.contact_force(i);
+                let on_g2 = n * f[0] + t1 * f[1] + t2 * f[2];
+                let pos = Vector3::from(c.pos);
+                // The pusher is the fingertip, or the card on the table; MuJoCo may list it
+                // second.
+                let pusher_first = g1.ends_with("_tip") || (g1 == "card" && g2 == "table");
+                let (pusher, part, force, normal, point) = if pusher_first {
+                    (g1, g2, on_g2, -n, pos + n * (0.5 * c.dist))
+                } else {
+                    (g2, g1, -on_g2, n, pos - n * (0.5 * c.dist))
+                };
+                ContactReport {
+                    finger: pusher.strip_suffix("_tip").unwrap_or(&pusher).to_string(),
+                    part,
+                    point: point.into(),
+                    normal: normal.into(),
+                    force: force.into(),
+                    phi: c.dist,
+                }
+            })
+            .collect()
+    }
+
+    /// The deepest penetration among the current contacts (m; 0 when none penetrates).
+    pub fn max_penetration(&self) -> f64 {
+        self.data
+            .contact()
+            .iter()
+            .map(|c| -c.dist)
+            .fold(0.0, f64::max)
+    }
+
     fn warnings(&self) -> i64 {
         let w = self.data.warning();
         DIVERGENCE_WARNINGS
@@ -400,5 +456,9 @@ impl Hand for MujocoHand {
                 status: format!("MuJoCo: {other}"),
             }),
         })
+    }
+
+    fn contact_readings(&self) -> Option<Vec<ContactReport>> {
+        Some(self.contacts())
     }
 }
