@@ -96,6 +96,9 @@ fn sim_run(
     }
     let mut h = AnyHand::new(hand, scene, noise)?;
     let traj = run::run_commands(&mut h, hand, &cmds.dq);
+    if let Some(dir) = out.parent().filter(|d| !d.as_os_str().is_empty()) {
+        std::fs::create_dir_all(dir).map_err(|e| format!("{}: {e}", dir.display()))?;
+    }
     std::fs::write(out, serde_json::to_string(&traj)? + "\n")
         .map_err(|e| format!("{}: {e}", out.display()))?;
     println!(
