@@ -287,7 +287,7 @@ pub fn run(args: &FirmwareBenchArgs) -> anyhow::Result<()> {
             }))
         }
         Err(e) => {
-            eprintln!("no round trip measured: {e}");
+            crate::note!("no round trip measured: {e}");
             None
         }
     };

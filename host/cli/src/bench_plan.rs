@@ -102,7 +102,7 @@ pub fn run(args: &PlanBenchArgs) -> anyhow::Result<()> {
         let t0 = Instant::now();
         let report = session.plan(&spec, &mut StdClock(t0))?;
         let s = t0.elapsed().as_secs_f64();
-        eprintln!(
+        crate::note!(
             "call {}/{}: {s:.2} s, {} expansions, {:?}",
             i + 1,
             args.calls,

@@ -113,7 +113,7 @@ pub fn run(args: EpisodeArgs) -> anyhow::Result<()> {
     };
     let exec = ExecSettings::for_task(task);
     let mut world = World::new(task);
-    let mut progress = |line: &str| eprintln!("{line}");
+    let mut progress = |line: &str| crate::output::note(line);
     let link = if method.searches() {
         args.kernel.open()?
     } else {
@@ -121,7 +121,7 @@ pub fn run(args: EpisodeArgs) -> anyhow::Result<()> {
     };
     let mut remote = match (link, &models) {
         (Some(link), Some(m)) => {
-            eprintln!("planning through {}", link.name());
+            crate::note!("planning through {}", link.name());
             Some(RemotePlanner::new(link, &m.dir, task.task())?)
         }
         _ => None,
@@ -140,7 +140,7 @@ pub fn run(args: EpisodeArgs) -> anyhow::Result<()> {
         .write(&args.out)
         .with_context(|| format!("writing {}", args.out.join("result.json").display()))?;
     write_report(&args.out, args.render)?;
-    eprintln!(
+    crate::note!(
         "done: valid {}, {}",
         result.valid,
         match (result.final_yaw, result.final_distance_m) {
@@ -166,6 +166,6 @@ pub fn write_report(dir: &std::path::Path, animate: bool) -> anyhow::Result<()> 
     })
     .with_context(|| format!("writing the report in {}", dir.display()))?;
     bar.finish_and_clear();
-    eprintln!("report: {}", dir.join(dips_report::REPORT_HTML).display());
+    crate::note!("report: {}", dir.join(dips_report::REPORT_HTML).display());
     Ok(())
 }

@@ -99,7 +99,7 @@ pub fn run_quality(args: QualityArgs) -> anyhow::Result<()> {
             .unwrap_or(false),
     };
     let q = measure(scene, &dir, &args.data, &seeds, &opts, |what| {
-        eprintln!("dips model quality: {what}");
+        crate::note!("dips model quality: {what}");
     })?;
     let path = dir.join(QUALITY_FILE);
     write_atomic(&path, serde_json::to_string_pretty(&q)?.as_bytes())

@@ -1,6 +1,8 @@
-//! Writing results to stdout without panicking: `println!` panics when stdout is a closed
-//! pipe (`dips … | head -1`) or a full disk; these return the error instead, and the binary
-//! turns a closed pipe into a quiet exit.
+//! Writing without panicking: `println!` and `eprintln!` panic when their stream is a closed
+//! pipe (`dips … 2>&1 | head -1`, quitting `less`) or a full disk. Results on stdout go through
+//! [`line`], which returns the error (the binary turns a closed pipe into a quiet exit); notes
+//! and progress on stderr go through [`note`], which drops them, so the work and its files
+//! complete whatever became of the stream.
 
 use std::io::Write;
 
@@ -11,6 +13,23 @@ pub fn line(text: &str) -> anyhow::Result<()> {
         .and_then(|()| out.write_all(b"\n"))
         .and_then(|()| out.flush())
         .map_err(|e| anyhow::Error::new(e).context("cannot write to stdout"))
+}
+
+/// Write `text` and a newline to stderr for a person watching; errors are ignored (a closed
+/// or full stderr must not stop the work, nor lose what it writes to files).
+pub fn note(text: &str) {
+    let mut err = std::io::stderr().lock();
+    let _ = err
+        .write_all(format!("{text}\n").as_bytes())
+        .and_then(|()| err.flush());
+}
+
+/// `eprintln!` that never panics: [`note`] of the `format!` arguments.
+#[macro_export]
+macro_rules! note {
+    ($($arg:tt)*) => {
+        $crate::output::note(&format!($($arg)*))
+    };
 }
 
 /// Whether `e` is (caused by) a closed pipe.

@@ -160,7 +160,7 @@ pub fn run(args: PlanArgs) -> anyhow::Result<()> {
     let t0 = Instant::now();
     let report: PlanOutcome = match args.kernel.open()? {
         Some(link) => {
-            eprintln!("planning through {}", link.name());
+            crate::note!("planning through {}", link.name());
             let mut remote = RemotePlanner::new(link, &dir, task)?;
             remote.plan_call(&spec, &mut NoClock)?
         }
@@ -169,7 +169,7 @@ pub fn run(args: PlanArgs) -> anyhow::Result<()> {
             // A line on stderr every second of a long call (stdout stays the result).
             let budget = args.search.time_budget_s;
             let mut tell = |s: f64, reads: u64| {
-                eprintln!(
+                crate::note!(
                     "planning: {s:.0} s, {} expansions started (budget {budget} s)",
                     reads.saturating_sub(1)
                 );

@@ -143,6 +143,6 @@ pub fn run(args: RenderArgs) -> anyhow::Result<()> {
         Picture::Still => draw_state(&rec, args.step, &args.out, args.size.unwrap_or(400)),
     }
     .with_context(|| format!("rendering {}", args.input.display()))?;
-    eprintln!("wrote {}", args.out.display());
+    crate::note!("wrote {}", args.out.display());
     Ok(())
 }
