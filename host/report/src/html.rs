@@ -1,6 +1,6 @@
-//! Self-contained HTML pages: inline style, no script, no network; images and links point
-//! only at files beside the page (relative paths), so the directory can be copied or opened
-//! anywhere.
+//! Self-contained HTML pages: inline style, no network; images and links point only at
+//! files beside the page (relative paths), so the directory can be copied or opened anywhere.
+//! The only script is an episode's 3D view ([`crate::scene3d`]), inlined whole.
 
 use std::fmt::Write;
 
@@ -46,7 +46,9 @@ color:#222;padding:0 16px}h1{font-size:24px}h2{font-size:19px;margin-top:28px;bo
 h3{font-size:16px}table{border-collapse:collapse;margin:8px 0}td,th{border:1px solid #ccc;\
 padding:4px 8px;font-size:13px;text-align:left;vertical-align:top}th{background:#f3f3f3}\
 img{max-width:100%;border:1px solid #eee;margin:6px 0;display:block}p.note{color:#555;font-size:13px}\
-nav a{margin-right:12px}";
+nav a{margin-right:12px}.scene3d-view{width:100%;border:1px solid #ddd;min-height:120px}\
+.scene3d-view canvas{display:block}.scene3d-controls{display:flex;gap:8px;align-items:center;margin:6px 0}\
+.scene3d-controls input{flex:1}p.scene3d-label{font-size:13px;margin:4px 0}";
 
 /// A page being built, section by section.
 #[derive(Debug, Clone)]
@@ -111,6 +113,13 @@ impl Page {
             escape(src),
             escape(alt)
         );
+        self
+    }
+
+    /// Markup written as it is: only for markup this crate builds (e.g.
+    /// [`crate::scene3d::scene_html`]), never for outside text.
+    pub fn raw(&mut self, markup: &str) -> &mut Self {
+        self.body.push_str(markup);
         self
     }
 

@@ -1,12 +1,14 @@
 //! `dips-report`: pictures of dips for people. An episode (`result.json`) or a `dips sim run`
 //! trajectory becomes a [`Recording`] of world states; from it come a three-view drawing of
 //! any state ([`pictures::frame_figure`]), a GIF animation ([`pictures::write_animation`]),
-//! plots over time ([`pictures::timeline`]) and a self-contained `report.html`
-//! ([`write_episode_report`]; the evaluation's page is built by `dips-eval` with [`html`]).
+//! plots over time ([`pictures::timeline`]), a 3D scene a person can turn
+//! ([`scene3d`]) and a self-contained `report.html` ([`write_episode_report`]; the
+//! evaluation's page is built by `dips-eval` with [`html`]).
 
 pub mod html;
 pub mod pictures;
 pub mod recording;
+pub mod scene3d;
 
 use std::path::Path;
 
@@ -138,7 +140,8 @@ pub fn episode_tables(page: &mut html::Page, ep: &EpisodeFile) {
 }
 
 /// Write an episode's report into `dir` (where its `result.json` is): the plots over time,
-/// the animation when `animate` (`progress(done, total)` per frame), and `report.html`.
+/// the animation when `animate` (`progress(done, total)` per frame), and `report.html` with
+/// the 3D view ([`scene3d`]).
 pub fn write_episode_report(
     dir: &Path,
     rec: &Recording,
@@ -169,6 +172,17 @@ pub fn write_episode_report(
             .unwrap_or_default()
     ));
     page.links(&[("result.json".into(), "result.json".into())]);
+    let scene = scene3d::scene_data(rec)?;
+    page.heading(2, "scene3d", "3D view")
+        .raw(&scene3d::scene_html(&scene))
+        .note(
+            "Drag to turn, scroll to zoom, right-drag to pan; the slider chooses the state and \
+             play runs the episode at the animation's pace. The hand's links and fingertips \
+             (task fingers coloured, the others grey-blue) come from our forward kinematics; \
+             red dots are contacts and green arrows the forces the fingers exert (0.5 cm per N); \
+             the grey ghost is the goal; purple lines are the paths of the task fingertips and \
+             the object so far. Units are metres.",
+        );
     if dir.join(EPISODE_GIF).exists() {
         page.heading(2, "animation", "Animation").image(
             EPISODE_GIF,

@@ -19,7 +19,7 @@ use crate::{ReportError, write_file};
 pub const ANIMATION_PANEL_PX: u32 = 340;
 
 /// Colours of the task fingers in plots (index, middle, ring, thumb).
-fn finger_color(f: Finger) -> [u8; 3] {
+pub(crate) fn finger_color(f: Finger) -> [u8; 3] {
     match f {
         Finger::Index => [31, 119, 180],
         Finger::Middle => [255, 127, 14],
