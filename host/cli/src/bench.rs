@@ -64,7 +64,12 @@ pub struct SearchBenchArgs {
     #[arg(long, default_value_t = 3.0)]
     pub seconds: f64,
     /// First seed; call `i` uses `seed + i`.
-    #[arg(long, default_value_t = 0, allow_negative_numbers = true)]
+    #[arg(
+        long,
+        default_value_t = 0,
+        allow_negative_numbers = true,
+        value_parser = crate::search_args::parse_seed
+    )]
     pub seed: u64,
     /// Print JSON instead of readable `key: value` lines.
     #[arg(long)]

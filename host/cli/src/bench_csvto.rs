@@ -27,7 +27,12 @@ pub struct CsvtoBenchArgs {
     #[arg(long, default_value_t = 7)]
     pub repeats: usize,
     /// Seed of the initial particles.
-    #[arg(long, default_value_t = 0, allow_negative_numbers = true)]
+    #[arg(
+        long,
+        default_value_t = 0,
+        allow_negative_numbers = true,
+        value_parser = crate::search_args::parse_seed
+    )]
     pub seed: u64,
     /// Print JSON instead of readable `key: value` lines.
     #[arg(long)]

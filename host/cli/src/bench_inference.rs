@@ -3,6 +3,7 @@
 use std::path::PathBuf;
 use std::time::Instant;
 
+use anyhow::Context;
 use clap::Args;
 use dips_kernel::rng::KernelRng;
 
@@ -38,7 +39,8 @@ fn time_engine(
     a: &InferenceArgs,
     inputs: &[Vec<f32>],
 ) -> anyhow::Result<((f64, f64), Vec<f32>)> {
-    let mut e = AnyEngine::load(kind, &a.file, &Expectation::default())?;
+    let mut e = AnyEngine::load(kind, &a.file, &Expectation::default())
+        .with_context(|| format!("loading {}", a.file.display()))?;
     let refs: Vec<&[f32]> = inputs.iter().map(Vec::as_slice).collect();
     let mut out = vec![0.0; a.batch * e.contract().output_shape().iter().product::<usize>()];
     for _ in 0..3 {
@@ -57,7 +59,8 @@ fn time_engine(
 pub fn run(a: &InferenceArgs) -> anyhow::Result<()> {
     anyhow::ensure!(a.batch > 0, "--batch must be positive");
     let simd = a.simd.apply();
-    let (_, c) = dips_onnx::contract::load_contract(&a.file)?;
+    let (_, c) = dips_onnx::contract::load_contract(&a.file)
+        .with_context(|| format!("loading {}", a.file.display()))?;
     let mut rng = KernelRng::seed_from_u64(7);
     let inputs: Vec<Vec<f32>> = c
         .role

@@ -30,7 +30,12 @@ pub struct PlanBenchArgs {
     #[arg(long, default_value_t = 10)]
     pub calls: u32,
     /// First seed.
-    #[arg(long, default_value_t = 0, allow_negative_numbers = true)]
+    #[arg(
+        long,
+        default_value_t = 0,
+        allow_negative_numbers = true,
+        value_parser = crate::search_args::parse_seed
+    )]
     pub seed: u64,
     /// The search's flags.
     #[command(flatten)]
@@ -46,7 +51,7 @@ pub struct PlanBenchArgs {
     pub json: bool,
     /// Threads of each model call (default: every core). The plan does not depend on it, only
     /// how many expansions fit a time budget.
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true, value_parser = crate::search_args::parse_positive)]
     pub threads: Option<usize>,
     /// Which copies of the kernel interpreter's op kernels run (the plans are the same).
     #[arg(long, value_enum, default_value_t = SimdArg::Auto)]

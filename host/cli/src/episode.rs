@@ -29,7 +29,12 @@ pub struct EpisodeArgs {
     #[arg(long)]
     pub method: String,
     /// Seed of the episode (contact-sequence draw, search, samplers, CSVTO initialisation).
-    #[arg(long, default_value_t = 0, allow_negative_numbers = true)]
+    #[arg(
+        long,
+        default_value_t = 0,
+        allow_negative_numbers = true,
+        value_parser = crate::search_args::parse_seed
+    )]
     pub seed: u64,
     /// Execute this comma-separated mode sequence instead of the prior's draw (dips-sampled,
     /// csvto-sampled).
@@ -48,11 +53,11 @@ pub struct EpisodeArgs {
     #[command(flatten)]
     pub depth: crate::search_args::DepthArgs,
     /// Stop after this many modes (default: the task's 7 / 5; the search depth stays).
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true, value_parser = crate::search_args::parse_positive)]
     pub max_modes: Option<usize>,
     /// Threads of each model call (default: every core). The plan does not depend on it, only
     /// how many expansions fit a time budget.
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true, value_parser = crate::search_args::parse_positive)]
     pub threads: Option<usize>,
     /// Output directory; `result.json`, the plots over time (`timeline.svg/png`) and
     /// `report.html` are written there.

@@ -9,7 +9,7 @@ fn main() -> ExitCode {
         Err(e) if dips_cli::output::is_broken_pipe(&e) => ExitCode::SUCCESS,
         // One line per cause, never a backtrace: these are the user's errors to act on.
         Err(e) => {
-            dips_cli::output::note(&format!("error: {e:#}"));
+            dips_cli::output::note(&format!("error: {}", dips_cli::output::causes(&e)));
             ExitCode::FAILURE
         }
     }

@@ -139,7 +139,8 @@ pub fn run(args: ModelArgs) -> anyhow::Result<()> {
             output,
             engine,
         } => {
-            let mut e = AnyEngine::load(engine.into(), &file, &Expectation::default())?;
+            let mut e = AnyEngine::load(engine.into(), &file, &Expectation::default())
+                .with_context(|| format!("loading {}", file.display()))?;
             let c = e.contract().clone();
             let io = TensorFile::read(&input)?;
             let (batch, ins) = io.contract_inputs(&c)?;
@@ -153,6 +154,7 @@ pub fn run(args: ModelArgs) -> anyhow::Result<()> {
                 JsonTensor { shape, data: out },
             );
             f.write(&output)?;
+            crate::note!("wrote {}", output.display());
         }
         ModelCommand::Lower { file, out } => {
             if out.extension().and_then(|e| e.to_str()) != Some("dipsm") {
@@ -161,7 +163,8 @@ pub fn run(args: ModelArgs) -> anyhow::Result<()> {
                     out.display()
                 );
             }
-            let l = lower_file(&file, &Expectation::default())?;
+            let l = lower_file(&file, &Expectation::default())
+                .with_context(|| format!("lowering {}", file.display()))?;
             l.write(&out)?;
             crate::output::line(&format!(
                 "{}",

@@ -42,7 +42,12 @@ pub struct QualityArgs {
     #[arg(long, default_value_t = 10)]
     pub trials: usize,
     /// Sampler seed.
-    #[arg(long, default_value_t = 0, allow_negative_numbers = true)]
+    #[arg(
+        long,
+        default_value_t = 0,
+        allow_negative_numbers = true,
+        value_parser = crate::search_args::parse_seed
+    )]
     pub seed: u64,
     /// Engine that runs the denoiser.
     #[arg(long, value_enum, default_value_t = EngineArg::Kernel)]

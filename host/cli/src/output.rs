@@ -32,6 +32,24 @@ macro_rules! note {
     };
 }
 
+/// `e` and its causes joined by `: ` as `{e:#}` writes them, without a cause that the message
+/// before it already ends with (errors such as `{path}: {source}` that also name their source
+/// would otherwise print it twice: "No such file or directory (os error 2): No such file or
+/// directory (os error 2)").
+pub fn causes(e: &anyhow::Error) -> String {
+    let mut text = String::new();
+    for cause in e.chain() {
+        let c = cause.to_string();
+        if text.is_empty() {
+            text = c;
+        } else if !text.ends_with(&c) {
+            text.push_str(": ");
+            text.push_str(&c);
+        }
+    }
+    text
+}
+
 /// Whether `e` is (caused by) a closed pipe.
 pub fn is_broken_pipe(e: &anyhow::Error) -> bool {
     e.chain().any(|c| {

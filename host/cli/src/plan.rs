@@ -48,7 +48,12 @@ pub struct PlanArgs {
     #[arg(long)]
     pub models: Option<PathBuf>,
     /// Seed of the search's random stream.
-    #[arg(long, default_value_t = 0, allow_negative_numbers = true)]
+    #[arg(
+        long,
+        default_value_t = 0,
+        allow_negative_numbers = true,
+        value_parser = crate::search_args::parse_seed
+    )]
     pub seed: u64,
     /// Engine that runs the models.
     #[arg(long, value_enum, default_value_t = PlanEngine::Kernel)]
@@ -71,7 +76,7 @@ pub struct PlanArgs {
     pub json: bool,
     /// Threads of each model call (default: every core). The plan does not depend on it, only
     /// how many expansions fit a time budget.
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true, value_parser = crate::search_args::parse_positive)]
     pub threads: Option<usize>,
     /// Where the plan is made: `in-process`, `spawn` (a `dips-firmware-sim` child),
     /// `spawn:PATH` or `tcp://HOST:PORT`. The plan is the same bit for bit.

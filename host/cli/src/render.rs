@@ -65,6 +65,16 @@ pub fn picture_kind(out: &Path, animation_allowed: bool) -> anyhow::Result<Pictu
 pub fn check_out_dir(out: &Path) -> anyhow::Result<()> {
     let parent = out.parent().filter(|p| !p.as_os_str().is_empty());
     if let Some(p) = parent
+        && p.exists()
+        && !p.is_dir()
+    {
+        bail!(
+            "--out {}: {} is a file, not a directory",
+            out.display(),
+            p.display()
+        );
+    }
+    if let Some(p) = parent
         && !p.is_dir()
     {
         bail!(

@@ -15,6 +15,57 @@ use dips_kernel::search::CostToCome;
 /// "Sampler").
 pub const DEFAULT_SAMPLER: &str = "ddpm:16";
 
+/// A seed (`--seed`): a whole number from 0 to 2^64 − 1; the message says so.
+pub fn parse_seed(s: &str) -> Result<u64, String> {
+    s.trim().parse::<u64>().map_err(|_| {
+        format!(
+            "seeds are non-negative integers (0 to {}), got `{s}`",
+            u64::MAX
+        )
+    })
+}
+
+/// A whole number ≥ `min` (`--max-modes`, `--threads`, `--calls`): the message names the
+/// bound.
+pub fn parse_count(s: &str, min: u64) -> Result<u64, String> {
+    match s.trim().parse::<i128>() {
+        Ok(v) if v >= i128::from(min) && v <= i128::from(u64::MAX) => Ok(v as u64),
+        Ok(_) => Err(format!("must be a whole number ≥ {min}, got `{s}`")),
+        Err(_) => Err(format!("must be a whole number ≥ {min}, got `{s}`")),
+    }
+}
+
+/// A count of at least 1 (`--max-modes`, `--threads`).
+pub fn parse_positive(s: &str) -> Result<usize, String> {
+    parse_count(s, 1)
+        .ok()
+        .and_then(|v| usize::try_from(v).ok())
+        .ok_or_else(|| format!("must be a whole number ≥ 1, got `{s}`"))
+}
+
+/// `--node-budget`: a whole number ≥ 0 (0: the planner's capacity).
+pub fn parse_node_budget(s: &str) -> Result<u32, String> {
+    parse_count(s, 0)
+        .ok()
+        .and_then(|v| u32::try_from(v).ok())
+        .ok_or_else(|| {
+            format!(
+                "must be a whole number from 0 (the planner's capacity) to {}, got `{s}`",
+                u32::MAX
+            )
+        })
+}
+
+/// `--time-budget-s`: seconds ≥ 0 (0: no budget), finite.
+pub fn parse_budget_s(s: &str) -> Result<f64, String> {
+    match s.trim().parse::<f64>() {
+        Ok(v) if v.is_finite() && v >= 0.0 => Ok(v),
+        _ => Err(format!(
+            "must be a finite number of seconds ≥ 0 (0: no budget), got `{s}`"
+        )),
+    }
+}
+
 /// How the search forms the cost-to-come `g` (`--cost-to-come`).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
 pub enum CostToComeArg {
@@ -78,11 +129,16 @@ pub struct SearchArgs {
     #[arg(long, default_value = DEFAULT_SAMPLER)]
     pub sampler: String,
     /// Wall-clock budget of each planning call in seconds (0: none; the paper's: 300).
-    #[arg(long, default_value_t = 300.0)]
+    #[arg(
+        long,
+        default_value_t = 300.0,
+        allow_negative_numbers = true,
+        value_parser = parse_budget_s
+    )]
     pub time_budget_s: f64,
     /// Most node expansions per planning call (0: the planner's capacity). Default: the
     /// task's (screwdriver 13, card 0; `docs/search.md`, "Node budget").
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true, value_parser = parse_node_budget)]
     pub node_budget: Option<u32>,
     /// How the search forms the cost-to-come `g`: `cumulative` (the paper's equation) or
     /// `last-segment` (the authors' code). Default: the task's (`docs/search.md`).
@@ -179,10 +235,11 @@ mod tests {
         assert!(a.sampler_config().is_ok());
 
         for bad in ["-1", "inf", "NaN"] {
-            let a = parse(&[&format!("--time-budget-s={bad}")]).unwrap();
-            let e = a.time_budget_ms().unwrap_err().to_string();
-            assert!(e.contains("--time-budget-s"), "{e}");
+            let e = parse(&["--time-budget-s", bad]).unwrap_err().to_string();
+            assert!(e.contains("--time-budget-s") && e.contains("≥ 0"), "{e}");
         }
+        let e = parse(&["--node-budget", "-1"]).unwrap_err().to_string();
+        assert!(e.contains("--node-budget") && e.contains("from 0"), "{e}");
         let e = parse(&["--sampler", "ddim"])
             .unwrap()
             .sampler_config()

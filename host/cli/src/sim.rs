@@ -120,7 +120,9 @@ pub enum SimCliError {
         got: usize,
     },
     /// A command entry is NaN or infinite (JSON has no NaN, but a huge literal overflows).
-    #[error("{path}: dq row {row} entry {col} is not finite")]
+    #[error(
+        "{path}: dq row {row} entry {col} is not finite; every entry must be a finite joint delta in rad"
+    )]
     NonFinite {
         /// The file.
         path: String,
@@ -128,6 +130,31 @@ pub enum SimCliError {
         row: usize,
         /// 0-based column.
         col: usize,
+    },
+    /// A command entry moves its joint further than the joint's whole range: no action can
+    /// mean it (the world would clamp it to the limit and report the run valid).
+    #[error(
+        "{path}: dq row {row} entry {col} is {value:?} rad; a joint delta must be within ±{limit:.3} rad, the range of {finger} joint {joint} ({lower} to {upper} rad)"
+    )]
+    OutOfLimit {
+        /// The file.
+        path: String,
+        /// 0-based row.
+        row: usize,
+        /// 0-based column.
+        col: usize,
+        /// The entry.
+        value: f64,
+        /// The largest magnitude allowed (the joint's range, rad).
+        limit: f64,
+        /// The finger the entry moves.
+        finger: &'static str,
+        /// The joint of that finger (0-based).
+        joint: usize,
+        /// The joint's lower limit (rad).
+        lower: f64,
+        /// The joint's upper limit (rad).
+        upper: f64,
     },
     /// The trajectory holds no state to draw.
     #[error("{path} holds no states (its `states` list is empty); nothing to render")]
@@ -216,9 +243,16 @@ fn read(path: &Path) -> Result<String, SimCliError> {
 /// Read and validate a commands file for a scene.
 pub fn load_commands(path: &Path, scene: SceneKind) -> Result<Vec<Vec<f64>>, SimCliError> {
     let p = path.display().to_string();
-    let cmds: Commands = serde_json::from_str(&read(path)?).map_err(|e| SimCliError::Json {
+    let text = read(path)?;
+    let cmds: Commands = serde_json::from_str(&text).map_err(|e| SimCliError::Json {
         path: p.clone(),
-        message: e.to_string(),
+        message: if ["NaN", "Infinity", "inf"].iter().any(|t| text.contains(t)) {
+            format!(
+                "{e}; JSON has no NaN or Infinity: every dq entry must be a finite number (rad)"
+            )
+        } else {
+            e.to_string()
+        },
     })?;
     for (row, dq) in cmds.dq.iter().enumerate() {
         if dq.len() != scene.action_dim() {
@@ -235,6 +269,39 @@ pub fn load_commands(path: &Path, scene: SceneKind) -> Result<Vec<Vec<f64>>, Sim
         }
     }
     Ok(cmds.dq)
+}
+
+/// Refuse a commands entry larger in magnitude than its joint's whole range in `hand`
+/// ([`SimCliError::OutOfLimit`]).
+pub fn check_limits(
+    path: &Path,
+    dq: &[Vec<f64>],
+    scene: SceneKind,
+    hand: &HandModel,
+) -> Result<(), SimCliError> {
+    for (row, r) in dq.iter().enumerate() {
+        for (i, f) in scene.task_fingers().iter().enumerate() {
+            let limits = hand.joint_limits(*f);
+            for (joint, &(lower, upper)) in limits.iter().enumerate() {
+                let col = 4 * i + joint;
+                let (value, limit) = (r[col], upper - lower);
+                if value.abs() > limit {
+                    return Err(SimCliError::OutOfLimit {
+                        path: path.display().to_string(),
+                        row,
+                        col,
+                        value,
+                        limit,
+                        finger: f.name(),
+                        joint,
+                        lower,
+                        upper,
+                    });
+                }
+            }
+        }
+    }
+    Ok(())
 }
 
 /// Execute commands in a fresh world; returns the trajectory and the error that stopped it.
@@ -288,6 +355,7 @@ fn run(args: &RunArgs) -> Result<(), SimCliError> {
         Some(p) => HandModel::load(p).map_err(anyhow::Error::from)?,
         None => HandModel::allegro_v4(),
     };
+    check_limits(&args.commands, &dq, scene, &hand)?;
     let mut world = World::with_model(scene, hand, WorldParams::for_scene(scene))
         .map_err(anyhow::Error::from)?;
     let (traj, failure) = match &args.log {
@@ -372,6 +440,7 @@ fn render_cmd(args: &RenderArgs) -> anyhow::Result<()> {
             args.size,
         );
         render::write(&figure, &args.out)?;
+        crate::note!("wrote {}", args.out.display());
         return Ok(());
     };
     let rec = dips_report::Recording::read(path)?;
@@ -382,7 +451,9 @@ fn render_cmd(args: &RenderArgs) -> anyhow::Result<()> {
         }
         .into());
     }
-    crate::render::draw_state(&rec, args.step, &args.out, args.size)
+    crate::render::draw_state(&rec, args.step, &args.out, args.size)?;
+    crate::note!("wrote {}", args.out.display());
+    Ok(())
 }
 
 /// Run `dips sim`.

@@ -25,7 +25,7 @@ pub struct TrainArgs {
     #[arg(long)]
     pub settings: Option<PathBuf>,
     /// Seed of the initialisation, data order, masks and noise.
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true, value_parser = crate::search_args::parse_seed)]
     pub seed: Option<u64>,
     /// Denoiser optimiser steps.
     #[arg(long)]
