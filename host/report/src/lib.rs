@@ -179,7 +179,7 @@ pub fn write_episode_report(
             "Drag to turn, scroll to zoom, right-drag to pan; the slider chooses the state and \
              play runs the episode at the animation's pace. The hand's links and fingertips \
              (task fingers coloured, the others grey-blue) come from our forward kinematics; \
-             red dots are contacts and green arrows the forces the fingers exert (0.5 cm per N); \
+             red dots are contacts and green arrows the forces exerted on the object (5 cm per N); \
              the grey ghost is the goal; purple lines are the paths of the task fingertips and \
              the object so far. Units are metres.",
         );

@@ -179,12 +179,20 @@
 
   // Contacts and forces, from a pool.
   var contactGeometry = new T.SphereGeometry(0.0022, 12, 8);
-  var contactMaterial = new T.MeshBasicMaterial({ color: 0xd21414 });
+  // Drawn over everything (as in the three-view drawings): a contact sits on a fingertip's
+  // surface and its force points into the object, where they would be hidden.
+  var contactMaterial = new T.MeshBasicMaterial({ color: 0xd21414, depthTest: false });
   var pool = [];
   function contactAt(n) {
     while (pool.length <= n) {
       var dot = new T.Mesh(contactGeometry, contactMaterial);
       var arrow = new T.ArrowHelper(unitY, new T.Vector3(), 0.01, 0x149628, 0.004, 0.0025);
+      dot.renderOrder = 10;
+      arrow.line.material.depthTest = false;
+      arrow.cone.material.depthTest = false;
+      arrow.renderOrder = 11;
+      arrow.line.renderOrder = 11;
+      arrow.cone.renderOrder = 11;
       scene.add(dot);
       scene.add(arrow);
       pool.push({ dot: dot, arrow: arrow });
@@ -254,7 +262,7 @@
   var radius = Math.max(0.04, 0.5 * Math.max(size.x, size.y, size.z) + 2 * data.tip_radius);
   function resetView() {
     var dist = radius / Math.sin((camera.fov * Math.PI) / 360) * 0.9;
-    var dir = new T.Vector3(0.55, -1.0, 0.5).normalize();
+    var dir = new T.Vector3(0.55, -1.0, 0.75).normalize();
     camera.position.copy(center).addScaledVector(dir, dist);
     controls.target.copy(center);
     camera.near = dist / 100;

@@ -8,7 +8,6 @@
 
 use dips_host::geometry::PartShape;
 use dips_host::kinematics::Finger;
-use dips_host::render::FORCE_SCALE;
 use dips_host::scenes::{SceneKind, card, screwdriver};
 use dips_host::world::World;
 use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion, Vector3};
@@ -28,6 +27,11 @@ pub const THREE_LICENSE: &str = include_str!("../vendor/three/LICENSE");
 pub const VIEWER_JS: &str = include_str!("scene3d.js");
 /// The `id` of the `<script type="application/json">` holding the [`SceneData`].
 pub const DATA_ID: &str = "dips-scene-data";
+
+/// Metres of force arrow per newton in the 3D view: ten times the three-view drawings'
+/// (`dips_host::render::FORCE_SCALE`), since the fingers' forces are mostly 0.05–0.5 N and a
+/// millimetre-long arrow is lost in a view that turns.
+pub const FORCE_SCALE_3D: f64 = 0.05;
 
 /// Points per finger in [`FrameData::hand`]: the hand's base, the four joint origins and the
 /// fingertip sphere's centre.
@@ -299,7 +303,7 @@ pub fn scene_data(rec: &Recording) -> Result<SceneData, ReportError> {
         marker,
         reference,
         table,
-        force_scale: FORCE_SCALE,
+        force_scale: FORCE_SCALE_3D,
         goals,
         frames,
     })
