@@ -463,12 +463,19 @@ pub fn run_online<H: Hand + ?Sized>(
             let (modes, record) = plan_call(
                 planner, prior, method, hand, &executed, depth, settings, call_seed,
             )?;
-            progress(&format!(
-                "  {} in {:.1} s: {}",
-                record.status,
-                record.seconds,
-                record.modes.join(", ")
-            ));
+            progress(&if record.modes.is_empty() && record.nodes_expanded == 0 {
+                format!(
+                    "  {} in {:.1} s: the goal is already reached, nothing left to plan",
+                    record.status, record.seconds
+                )
+            } else {
+                format!(
+                    "  {} in {:.1} s: {}",
+                    record.status,
+                    record.seconds,
+                    record.modes.join(", ")
+                )
+            });
             planning_s.push(record.seconds);
             plans.push(record);
             queue = modes;
@@ -480,11 +487,17 @@ pub fn run_online<H: Hand + ?Sized>(
         if method.searches() && method != Method::DipsNoReplan {
             queue.clear();
         }
-        progress(&format!(
-            "mode {}/{stop}: {}",
-            executed.len() + 1,
-            mode.name()
-        ));
+        // A searching method stops early when the goal is reached, so its count is a limit
+        // (the episode's pictures count the modes it executed).
+        progress(&if method.searches() {
+            format!(
+                "mode {} (of at most {stop}): {}",
+                executed.len() + 1,
+                mode.name()
+            )
+        } else {
+            format!("mode {}/{stop}: {}", executed.len() + 1, mode.name())
+        });
         let initial = match session.as_mut() {
             Some(s) if method != Method::CsvtoSampled => Some(diffusion_particles(
                 s.models_mut(),

@@ -328,6 +328,6 @@ fn measure(a: &SearchBenchArgs, spec: &PlanSpec) -> anyhow::Result<()> {
 }
 
 /// An `f32` as the `f64` with the same shortest decimal form (0.9, not 0.8999999761581421).
-fn shortest(x: f32) -> f64 {
+pub(crate) fn shortest(x: f32) -> f64 {
     x.to_string().parse().unwrap_or(f64::from(x))
 }

@@ -146,11 +146,12 @@ pub fn run(args: EpisodeArgs) -> anyhow::Result<()> {
         .with_context(|| format!("writing {}", args.out.join("result.json").display()))?;
     write_report(&args.out, args.render)?;
     crate::note!(
-        "done: valid {}, {}",
+        "done: {} modes executed, valid {}, {}",
+        result.modes.len(),
         result.valid,
         match (result.final_yaw, result.final_distance_m) {
             (Some(y), _) => format!("final yaw {y:.3} rad"),
-            (_, Some(d)) => format!("final distance {:.3} m", d),
+            (_, Some(d)) => format!("final distance to the goal {:.2} cm", 100.0 * d),
             _ => String::new(),
         }
     );

@@ -41,6 +41,32 @@ pub struct EpisodeSettings {
     pub engine: String,
 }
 
+impl EpisodeSettings {
+    /// The first setting where `self` (the directory's) and `other` (this run's) differ, as
+    /// (its name, its value in `self`, its value in `other`), values as JSON writes them; the
+    /// name is the flag's where there is one (`--sampler`, `--node-budget`, ...).
+    pub fn first_difference(&self, other: &Self) -> (String, String, String) {
+        let (a, b) = (
+            serde_json::to_value(self).unwrap_or_default(),
+            serde_json::to_value(other).unwrap_or_default(),
+        );
+        let (Some(a), Some(b)) = (a.as_object(), b.as_object()) else {
+            return ("settings".into(), String::new(), String::new());
+        };
+        for (k, va) in a {
+            let vb = b.get(k).cloned().unwrap_or_default();
+            if *va != vb {
+                return (
+                    format!("--{}", k.replace('_', "-")),
+                    va.to_string(),
+                    vb.to_string(),
+                );
+            }
+        }
+        ("settings".into(), String::new(), String::new())
+    }
+}
+
 /// What [`EpisodeSettings::cost_to_come`] was before it was recorded.
 fn cumulative() -> String {
     CostToCome::Cumulative.name().to_string()
@@ -122,7 +148,8 @@ impl EvalSettings {
         parse_sampler(&self.sampler)?;
         if matches!(self.kernel, KernelTarget::Tcp(_)) && self.jobs > 1 {
             bail!(
-                "--kernel {}: a TCP kernel serves one connection at a time; use --jobs 1, or                  --kernel spawn (one firmware per episode)",
+                "--kernel {}: a TCP kernel serves one connection at a time; use --jobs 1, or \
+                 --kernel spawn (one firmware per episode)",
                 self.kernel
             );
         }
@@ -246,11 +273,12 @@ pub fn claim_dir(dir: &Path, settings: &EvalSettings) -> anyhow::Result<EvalFile
     };
     if let Some(old) = read_eval_file(dir)? {
         if old.episode != episode {
+            let (name, there, here) = old.episode.first_difference(&episode);
             bail!(
-                "{} holds an evaluation with other settings ({}); use another --out, or the same \
-                 task, sampler, budgets, mode limit, cost-to-come, search depth, models and engine",
+                "{} holds an evaluation with other settings: {name} is {there} there and {here} \
+                 here; use another --out, or the same task, sampler, budgets, mode limit, \
+                 cost-to-come, search depth, models and engine",
                 dir.join(EVAL_FILE).display(),
-                serde_json::to_string(&old.episode).unwrap_or_default()
             );
         }
         if old.first_seed != settings.first_seed {
@@ -281,4 +309,48 @@ pub fn episode_dir(dir: &Path, method: &str, seed: u64) -> PathBuf {
     dir.join("episodes")
         .join(method)
         .join(format!("seed-{seed}"))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn settings() -> EpisodeSettings {
+        EpisodeSettings {
+            task: "card".into(),
+            sampler: "ddpm:16".into(),
+            time_budget_s: 300.0,
+            node_budget: 0,
+            max_modes: None,
+            cost_to_come: "cumulative".into(),
+            search_depth: "modes-left".into(),
+            models: "/m".into(),
+            engine: "kernel".into(),
+        }
+    }
+
+    #[test]
+    fn the_differing_setting_is_named_with_both_values() {
+        let there = settings();
+        let here = EpisodeSettings {
+            sampler: "ddim:8".into(),
+            ..settings()
+        };
+        assert_eq!(
+            there.first_difference(&here),
+            (
+                "--sampler".into(),
+                "\"ddpm:16\"".into(),
+                "\"ddim:8\"".into()
+            )
+        );
+        let here = EpisodeSettings {
+            max_modes: Some(3),
+            ..settings()
+        };
+        assert_eq!(
+            there.first_difference(&here),
+            ("--max-modes".into(), "null".into(), "3".into())
+        );
+    }
 }

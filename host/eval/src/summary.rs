@@ -172,6 +172,7 @@ fn read_trial(
         SceneKind::Screwdriver => r.final_yaw,
         SceneKind::Card => r.final_distance_m.map(|d| d * 100.0),
     };
+    let planning_s = r.planning_times();
     Ok(Some(Trial {
         method: r.method,
         seed: r.seed,
@@ -179,7 +180,7 @@ fn read_trial(
         valid: r.valid,
         success: episode_success(scene, r.valid, r.final_yaw, r.final_distance_m),
         modes: r.modes,
-        planning_s: r.planning_s,
+        planning_s,
         csvto_step_median_s: Stats::of(&r.csvto_step_s).map(|s| s.median),
         wall_s: wall.seconds,
         error: None,
@@ -321,6 +322,30 @@ fn fmt_opt(v: Option<f64>, digits: usize) -> String {
     v.map_or_else(|| "–".to_string(), |x| format!("{x:.digits$}"))
 }
 
+/// Sentences naming what a summary lacks: each method with fewer finished trials than
+/// `asked` (default: the trials `eval.json` holds), so a summary of part of an evaluation
+/// never passes for the whole. Empty when every trial is there.
+pub fn shortfall(s: &Summary, asked: Option<usize>) -> Vec<String> {
+    let expected = asked.unwrap_or(s.eval.trials);
+    let mut lines = Vec::new();
+    if expected > s.eval.trials {
+        lines.push(format!(
+            "--trials {expected}: this evaluation was asked for {} trials per method (eval.json); \
+             the summary covers those (run without --summarize-only to add the rest)",
+            s.eval.trials
+        ));
+    }
+    for m in &s.methods {
+        if m.trials < expected {
+            lines.push(format!(
+                "{}: {} of {expected} trials finished; the summary covers those {}",
+                m.method, m.trials, m.trials
+            ));
+        }
+    }
+    lines
+}
+
 /// The Markdown table of a summary.
 pub fn markdown(s: &Summary) -> String {
     let screwdriver = s.task == "screwdriver";
@@ -392,9 +417,15 @@ pub fn markdown(s: &Summary) -> String {
             out.push_str(".\n");
         }
     }
+    let missing = shortfall(s, None);
+    if !missing.is_empty() {
+        out.push_str(&format!("\nNot finished: {}.\n", missing.join("; ")));
+    }
     out.push_str(&format!(
         "\nEpisode wall times sum to {:.0} s. Figures: `outcome.svg` / `outcome.png` (per-trial \
-         outcome), `planning.svg` / `planning.png` (planning-call times).\n",
+         outcome), `planning.svg` / `planning.png` (planning-call times; a call that found the \
+         episode already at its goal plans nothing and is left out). Methods with fewer than \
+         5 trials are drawn as points only.\n",
         s.episode_wall_total_s
     ));
     out

@@ -49,6 +49,11 @@ impl BoxStats {
     }
 }
 
+/// Series with fewer values than this are drawn as a strip plot (their points and a median
+/// tick, no box): quartiles and whiskers of two or three trials would suggest a spread that
+/// was never measured.
+pub(crate) const STRIP_BELOW: usize = 5;
+
 /// One box of a box plot: a label and its values (one per trial).
 #[derive(Debug, Clone, PartialEq)]
 pub struct BoxSeries {
@@ -58,7 +63,8 @@ pub struct BoxSeries {
     pub values: Vec<f64>,
 }
 
-/// A box plot with each trial drawn as a dot over its box.
+/// A box plot with each trial drawn as a dot over its box; a series with fewer than
+/// [`STRIP_BELOW`] values is drawn as a strip plot (the dots and a median tick only).
 #[derive(Debug, Clone, PartialEq)]
 pub struct BoxPlot {
     /// Title above the plot.
@@ -142,19 +148,30 @@ impl BoxPlot {
             let x = i as f32;
             let (w, cap) = (0.18f32, 0.09f32);
             let y = |v: f64| v as f32;
-            chart
-                .draw_series([Rectangle::new([(x - w, y(b.q1)), (x + w, y(b.q3))], style)])
-                .map_err(draw_err)?;
-            chart
-                .draw_series([
-                    // The median, the whiskers to the furthest trial within 1.5 IQR, their caps.
-                    PathElement::new([(x - w, y(b.median)), (x + w, y(b.median))], style),
-                    PathElement::new([(x, y(b.q3)), (x, y(b.high))], color.stroke_width(1)),
-                    PathElement::new([(x, y(b.q1)), (x, y(b.low))], color.stroke_width(1)),
-                    PathElement::new([(x - cap, y(b.high)), (x + cap, y(b.high))], style),
-                    PathElement::new([(x - cap, y(b.low)), (x + cap, y(b.low))], style),
-                ])
-                .map_err(draw_err)?;
+            let strip = finite.len() < STRIP_BELOW;
+            if strip {
+                chart
+                    .draw_series([PathElement::new(
+                        [(x - w, y(b.median)), (x + w, y(b.median))],
+                        color.mix(0.6).stroke_width(1),
+                    )])
+                    .map_err(draw_err)?;
+            }
+            if !strip {
+                chart
+                    .draw_series([Rectangle::new([(x - w, y(b.q1)), (x + w, y(b.q3))], style)])
+                    .map_err(draw_err)?;
+                chart
+                    .draw_series([
+                        // The median, the whiskers to the furthest trial within 1.5 IQR, their caps.
+                        PathElement::new([(x - w, y(b.median)), (x + w, y(b.median))], style),
+                        PathElement::new([(x, y(b.q3)), (x, y(b.high))], color.stroke_width(1)),
+                        PathElement::new([(x, y(b.q1)), (x, y(b.low))], color.stroke_width(1)),
+                        PathElement::new([(x - cap, y(b.high)), (x + cap, y(b.high))], style),
+                        PathElement::new([(x - cap, y(b.low)), (x + cap, y(b.low))], style),
+                    ])
+                    .map_err(draw_err)?;
+            }
             // Trials as dots, spread across the box so equal values stay visible.
             let m = finite.len();
             chart
@@ -263,6 +280,22 @@ mod tests {
         assert_eq!((info.width, info.height), (640, 400));
         let dark = buf.chunks(3).filter(|p| p.iter().all(|&c| c < 80)).count();
         assert!(dark > 500, "only {dark} dark pixels: no text or axes drawn");
+    }
+
+    #[test]
+    fn fewer_than_five_trials_are_a_strip_plot_without_a_box() {
+        let rects = |values: Vec<f64>| {
+            let mut p = plot();
+            p.reference = None;
+            p.series = vec![BoxSeries {
+                label: "dips".into(),
+                values,
+            }];
+            p.svg().unwrap().matches("<rect").count()
+        };
+        let boxed = rects(vec![1.0, 2.0, 3.0, 4.0, 5.0]);
+        assert_eq!(rects(vec![2.21, 1.89]), boxed - 1, "two trials: no box");
+        assert_eq!(rects(vec![1.0, 2.0, 3.0, 4.0]), boxed - 1, "four: no box");
     }
 
     #[test]

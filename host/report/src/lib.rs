@@ -78,8 +78,8 @@ pub fn episode_tables(page: &mut html::Page, ep: &EpisodeFile) {
     use html::Cell;
     let coord = |s: &[f64]| -> String {
         match (ep.task.as_str(), s.len().checked_sub(3)) {
-            ("screwdriver", Some(i)) => format!("yaw {:.3} rad", s[i + 2]),
-            (_, Some(i)) => format!("y {:.2} cm", 100.0 * s[i + 1]),
+            ("screwdriver", Some(i)) => format!("yaw {} rad", recording::fixed(s[i + 2], 3)),
+            (_, Some(i)) => format!("y {} cm", recording::fixed(100.0 * s[i + 1], 2)),
             _ => "—".into(),
         }
     };
@@ -95,7 +95,11 @@ pub fn episode_tables(page: &mut html::Page, ep: &EpisodeFile) {
                 format!("{}", r.steps.len()).into(),
                 coord(&r.start_state).into(),
                 coord(end).into(),
-                format!("{:.3} / {:.3} / {:.3}", r.goal[0], r.goal[1], r.goal[2]).into(),
+                match ep.scene() {
+                    Ok(scene) => recording::goal_words(scene, r.goal),
+                    Err(_) => format!("{:.3} / {:.3} / {:.3}", r.goal[0], r.goal[1], r.goal[2]),
+                }
+                .into(),
                 (if r.steps.iter().all(|s| s.valid) {
                     "yes"
                 } else {

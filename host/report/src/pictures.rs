@@ -212,6 +212,9 @@ pub fn timeline(rec: &Recording) -> Option<Timeline> {
             })
             .collect()
     };
+    // No finger lifted (no regrasp mode ran): a sentence instead of a dashed δ line alone on
+    // an axis around it.
+    let any_lifted = sdf.iter().any(|s| !s.is_empty());
     let mut sdf_series = per_finger(sdf);
     sdf_series.push(Series {
         label: "clearance δ".into(),
@@ -240,10 +243,20 @@ pub fn timeline(rec: &Recording) -> Option<Timeline> {
                 Vec::new()
             },
         },
-        TimePanel {
-            title: "lifted fingers: fingertip distance to the object".into(),
-            y_label: "sdf (mm)".into(),
-            series: sdf_series,
+        if any_lifted {
+            TimePanel {
+                title: "lifted fingers: fingertip distance to the object".into(),
+                y_label: "sdf (mm)".into(),
+                series: sdf_series,
+            }
+        } else {
+            TimePanel {
+                title: "lifted fingers: none in this episode (every mode kept its fingers in \
+                        contact), so no clearance to plot"
+                    .into(),
+                y_label: "sdf (mm)".into(),
+                series: Vec::new(),
+            }
         },
         TimePanel {
             title: "time spent: CSVTO solve per step, planning per mode".into(),

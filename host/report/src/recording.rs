@@ -53,6 +53,15 @@ pub struct PlanView {
     pub seconds: f64,
 }
 
+impl PlanView {
+    /// Whether the call found the episode already done: `Found` at the root with no mode
+    /// planned and no node expanded (the last call of a card episode that reached its goal).
+    /// It plans nothing, so it is listed but left out of planning-time statistics.
+    pub fn finished(&self) -> bool {
+        self.modes.is_empty() && self.nodes_expanded == 0 && self.status.starts_with("Found")
+    }
+}
+
 /// An episode's `result.json` (`dips episode`, `dips eval`): the fields the pictures, the
 /// reports and `dips eval`'s summary read.
 #[derive(Debug, Clone, Deserialize)]
@@ -93,6 +102,20 @@ pub struct EpisodeFile {
 }
 
 impl EpisodeFile {
+    /// The planning-call times that count in statistics: [`EpisodeFile::planning_s`] without
+    /// the calls that found the episode done ([`PlanView::finished`]).
+    pub fn planning_times(&self) -> Vec<f64> {
+        if self.plans.len() != self.planning_s.len() {
+            return self.planning_s.clone();
+        }
+        self.planning_s
+            .iter()
+            .zip(&self.plans)
+            .filter(|(_, p)| !p.finished())
+            .map(|(&s, _)| s)
+            .collect()
+    }
+
     /// The task.
     pub fn scene(&self) -> Result<SceneKind, ReportError> {
         SceneKind::from_name(&self.task).ok_or_else(|| ReportError::Input {
@@ -108,7 +131,7 @@ impl EpisodeFile {
     pub fn outcome(&self) -> String {
         let value = match (self.final_yaw, self.final_distance_m) {
             (Some(y), _) => format!("final yaw {y:.3} rad"),
-            (_, Some(d)) => format!("final distance to the goal {:.2} cm", 100.0 * d),
+            (_, Some(d)) => format!("final distance to the goal {} cm", fixed(100.0 * d, 2)),
             _ => "no outcome".to_string(),
         };
         let success = match self.success {
@@ -169,6 +192,34 @@ fn input_err(path: &Path, reason: impl Into<String>) -> ReportError {
     }
 }
 
+/// `v` with `digits` decimals, never `-0.00`: a value that rounds to zero prints as zero.
+pub fn fixed(v: f64, digits: usize) -> String {
+    let s = format!("{v:.digits$}");
+    match s.strip_prefix('-') {
+        Some(rest) if rest.chars().all(|c| c == '0' || c == '.') => rest.to_string(),
+        _ => s,
+    }
+}
+
+/// A mode goal in task coordinates with units: the card's x and y in cm and its angle in
+/// rad, the screwdriver's roll, pitch and yaw in rad.
+pub fn goal_words(scene: SceneKind, g: [f64; 3]) -> String {
+    match scene {
+        SceneKind::Card => format!(
+            "x {} cm, y {} cm, θ {} rad",
+            fixed(100.0 * g[0], 2),
+            fixed(100.0 * g[1], 2),
+            fixed(g[2], 3)
+        ),
+        SceneKind::Screwdriver => format!(
+            "roll {}, pitch {}, yaw {} rad",
+            fixed(g[0], 3),
+            fixed(g[1], 3),
+            fixed(g[2], 3)
+        ),
+    }
+}
+
 /// The object's task coordinates in a state (its last three entries).
 fn object_of(state: &[f64]) -> [f64; 3] {
     let n = state.len();
@@ -182,19 +233,23 @@ fn object_of(state: &[f64]) -> [f64; 3] {
 fn object_words(scene: SceneKind, o: [f64; 3], goal: Option<[f64; 3]>) -> String {
     match scene {
         SceneKind::Screwdriver => match goal {
-            Some(g) => format!("yaw {:.2} rad (mode goal {:.2})", o[2], g[2]),
-            None => format!("yaw {:.2} rad", o[2]),
+            Some(g) => format!(
+                "yaw {} rad (mode goal {} rad)",
+                fixed(o[2], 2),
+                fixed(g[2], 2)
+            ),
+            None => format!("yaw {} rad", fixed(o[2], 2)),
         },
         SceneKind::Card => {
             let task = f64::from(dips_kernel::task::CARD_GOAL_Y);
             match goal {
                 Some(g) => format!(
-                    "card y {:.2} cm (mode goal {:.2}, task goal {:.1})",
-                    100.0 * o[1],
-                    100.0 * g[1],
-                    100.0 * task
+                    "card y {} cm (mode goal {} cm, task goal {} cm)",
+                    fixed(100.0 * o[1], 2),
+                    fixed(100.0 * g[1], 2),
+                    fixed(100.0 * task, 1)
                 ),
-                None => format!("card y {:.2} cm", 100.0 * o[1]),
+                None => format!("card y {} cm", fixed(100.0 * o[1], 2)),
             }
         }
     }
@@ -352,5 +407,53 @@ impl Recording {
                 .map(|i| !m.in_contact(i))
                 .collect(),
         )
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_call_that_found_the_episode_done_is_left_out_of_the_timings() {
+        let plan = |modes: &[&str], nodes: u32, seconds: f64| PlanView {
+            modes: modes.iter().map(|m| m.to_string()).collect(),
+            status: "Found".into(),
+            nodes_expanded: nodes,
+            seconds,
+        };
+        let ep = EpisodeFile {
+            task: "card".into(),
+            method: "dips".into(),
+            seed: 0,
+            modes: vec!["both".into(), "both".into()],
+            final_yaw: None,
+            final_distance_m: Some(1e-4),
+            valid: true,
+            success: None,
+            success_rule: None,
+            planning_s: vec![2.21, 1.89, 0.001],
+            csvto_step_s: Vec::new(),
+            mode_runs: Vec::new(),
+            plans: vec![
+                plan(&["both", "both"], 5, 2.21),
+                plan(&["both"], 3, 1.89),
+                plan(&[], 0, 0.001),
+            ],
+        };
+        assert!(ep.plans[2].finished() && !ep.plans[1].finished());
+        assert_eq!(ep.planning_times(), vec![2.21, 1.89]);
+    }
+
+    #[test]
+    fn numbers_never_print_as_negative_zero() {
+        assert_eq!(fixed(-0.0001, 2), "0.00");
+        assert_eq!(fixed(-0.004, 2), "0.00");
+        assert_eq!(fixed(-0.006, 2), "-0.01");
+        assert_eq!(fixed(1.5, 1), "1.5");
+        assert_eq!(
+            goal_words(SceneKind::Card, [0.0, -0.06, -0.0]),
+            "x 0.00 cm, y -6.00 cm, θ 0.000 rad"
+        );
     }
 }

@@ -282,7 +282,7 @@ pub fn run_mode_observed<H: Hand + ?Sized>(
             // infeasible plan (measured: the card then barely moves). Re-run it and keep the
             // attempt with the lowest penalty.
             let mut retries = 0;
-
+            let first = worst_violation(&report);
             while retries < settings.warmup_retries
                 && worst_violation(&report) > settings.warmup_tolerance
             {
@@ -294,16 +294,19 @@ pub fn run_mode_observed<H: Hand + ?Sized>(
                 };
                 let r = solve(&problem, &mut again, settings.warmup_iters, &settings.csvto)?;
                 iters += settings.warmup_iters;
-                progress(&format!(
-                    "{} warm-up not converged (violation {:.1e}); retry {retries}: {:.1e}",
-                    mode.name(),
-                    worst_violation(&report),
-                    worst_violation(&r)
-                ));
                 if r.penalties[0] < report.penalties[0] {
                     particles = again;
                     report = r;
                 }
+            }
+            if retries > 0 {
+                progress(&format!(
+                    "{} warm-up: constraint violation {first:.1e} above {:.0e}, re-run {retries} \
+                     time(s), kept {:.1e} (usual at a mode's start; CSVTO's steps reduce it)",
+                    mode.name(),
+                    settings.warmup_tolerance,
+                    worst_violation(&report)
+                ));
             }
         }
         let solve_s = t0.elapsed().as_secs_f64();
@@ -332,22 +335,39 @@ pub fn run_mode_observed<H: Hand + ?Sized>(
             })
             .collect::<Vec<_>>();
         let valid = pose_valid(task, &hand.object_pose());
+        // Fixed decimals without "-0.00".
+        let f = |v: f64, d: usize| {
+            let s = format!("{v:.d$}");
+            match s.strip_prefix('-') {
+                Some(r) if r.chars().all(|c| c == '0' || c == '.') => r.to_string(),
+                _ => s,
+            }
+        };
+        let object = match task {
+            SceneKind::Card => format!(
+                "card x {} cm, y {} cm, θ {} rad",
+                f(o[0] * 100.0, 2),
+                f(o[1] * 100.0, 2),
+                f(o[2], 3)
+            ),
+            SceneKind::Screwdriver => format!(
+                "roll {}, pitch {}, yaw {} rad",
+                f(o[0], 3),
+                f(o[1], 3),
+                f(o[2], 3)
+            ),
+        };
+        let tips: Vec<String> = tip_sdf.iter().map(|v| f(v * 1e3, 1)).collect();
         progress(&format!(
-            "{} step {}/{}: solve {:.2}s ({} it), eq {:.1e}, object {:?}, tip sdf {:?}{}",
+            "{} step {}/{}: solve {:.2} s ({} it), constraint violation {:.1e}, {object}, \
+             fingertip distance [{}] mm{}",
             mode.name(),
             k + 1,
             h,
             solve_s,
             iters,
             report.max_eq_violation[0],
-            state[nq..]
-                .iter()
-                .map(|v| (v * 1e3).round() / 1e3)
-                .collect::<Vec<_>>(),
-            tip_sdf
-                .iter()
-                .map(|v| (v * 1e4).round() / 1e4)
-                .collect::<Vec<_>>(),
+            tips.join(", "),
             if valid { "" } else { " INVALID" }
         ));
         steps.push(StepLog {
