@@ -6,6 +6,7 @@
 #     and the view says it is ready (WebGL through SwiftShader, no GPU needed);
 #   - moving the slider moves the hand: the fingertips drawn at the first and the last state
 #     differ, and each is where the embedded data (our forward kinematics) puts it;
+#   - the play button plays: 3 s after a click the view shows a later state;
 #   - the canvas draws: a screenshot's canvas area holds the coloured hand and object.
 # Installs chromium with apt-get when it is missing; if that fails, says "skipped" and exits
 # 0. `--keep DIR` keeps the screenshots (DIR/<task>.png; docs/pictures/report-3d.png is one).
@@ -43,7 +44,9 @@ note("console."+k+": "+Array.prototype.map.call(arguments,String).join(" "));ret
 window.addEventListener("error",function(e){note("uncaught: "+e.message);});
 window.addEventListener("unhandledrejection",function(e){note("unhandled rejection: "+e.reason);});
 window.addEventListener("load",function(){setTimeout(function(){var c=document.querySelector("#dips-scene-view canvas");
-if(c){var r=c.getBoundingClientRect();root.setAttribute("data-check-rect",JSON.stringify([r.left,r.top,r.width,r.height,window.devicePixelRatio||1]));}},0);});
+if(c){var r=c.getBoundingClientRect();root.setAttribute("data-check-rect",JSON.stringify([r.left,r.top,r.width,r.height,window.devicePixelRatio||1]));}},0);
+if(/play/.test(location.hash)){setTimeout(function(){document.getElementById("dips-scene-play").click();},100);
+setTimeout(function(){root.setAttribute("data-check-played",document.getElementById("dips-scene").getAttribute("data-frame"));},3100);}});
 })();</script>'
 
 chrome() {
@@ -74,6 +77,7 @@ EOF
     url="file://$dir/check.html"
     chrome --dump-dom "$url#frame=0" >"$dir/first.html" 2>"$dir/first.log"
     chrome --dump-dom "$url#frame=last" >"$dir/last.html" 2>"$dir/last.log"
+    chrome --dump-dom "$url#frame=0&play" >"$dir/play.html" 2>"$dir/play.log"
     chrome --screenshot="$dir/shot.png" "$url#frame=$shot" >/dev/null 2>"$dir/shot.log"
     if [[ -n $keep ]]; then cp "$dir/shot.png" "$keep/$task.png"; fi
     if ! python3 - "$task" "$dir" <<'EOF'; then
@@ -119,6 +123,14 @@ for name in ("first", "last"):
         problems.append(f"{name}: drawn fingertips {got} are not the data's {exp}")
     drawn[name] = got
     rect = json.loads(root["data-check-rect"]) if "data-check-rect" in root else rect
+page = open(f"{d}/play.html", encoding="utf-8").read()
+played = attrs("html", page).get("data-check-played")
+if "data-check-errors" in attrs("html", page):
+    problems.append(f"play: {attrs('html', page)['data-check-errors']}")
+if played is None or int(played) < 2:
+    problems.append(f"play: 3 s after a click on play the view shows state {played}, not a later one")
+else:
+    print(f"{task}: 3 s after a click on play the view shows state {played}")
 if len(drawn) == 2:
     moved = max(abs(a - b) for f, l in zip(drawn["first"], drawn["last"]) for a, b in zip(f, l))
     print(f"{task}: the slider moved the fingertips by up to {1000 * moved:.1f} mm")

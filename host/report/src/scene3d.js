@@ -201,7 +201,22 @@
   }
 
   var current = -1;
-  var dirty = true;
+  function render() {
+    renderer.render(scene, camera);
+    hook.renders++;
+    root.setAttribute('data-renders', String(hook.renders));
+  }
+  // Turning the view asks for many renders a frame: one per animation frame is enough.
+  var pending = false;
+  function requestRender() {
+    if (pending) return;
+    pending = true;
+    requestAnimationFrame(function () {
+      pending = false;
+      render();
+    });
+  }
+
   function show(k) {
     k = Math.max(0, Math.min(data.frames.length - 1, k | 0));
     var fr = data.frames[k];
@@ -246,7 +261,7 @@
     label.textContent = fr.label + (fr.goals.length
       ? ' · ghost: ' + fr.goals.map(function (i) { return data.goals[i].label; }).join(', ')
       : '');
-    dirty = true;
+    render();
   }
 
   // A camera that sees every state: the hand and the object over the whole episode.
@@ -269,7 +284,7 @@
     camera.far = dist * 20;
     camera.updateProjectionMatrix();
     controls.update();
-    dirty = true;
+    render();
   }
 
   function resize() {
@@ -278,39 +293,34 @@
     renderer.setSize(w, h);
     camera.aspect = w / h;
     camera.updateProjectionMatrix();
-    dirty = true;
+    if (current >= 0) render();
   }
 
+  // Playing: each state held its time (as in the animation), by timers, which run in
+  // every browser whether or not it draws animation frames.
   var playing = false;
-  var last = 0;
-  var waited = 0;
+  var timer = null;
   function setPlaying(p) {
     playing = p;
     playButton.textContent = p ? '❚❚ pause' : '▶ play';
-    last = performance.now();
-    waited = 0;
+    if (timer !== null) clearTimeout(timer);
+    timer = null;
+    if (p) schedule();
   }
-  function tick(now) {
-    if (playing) {
-      waited += (now - last) / 1000;
-      last = now;
-      var hold = data.frames[current].hold_s || 0.4;
-      if (waited >= hold) {
-        waited = 0;
-        if (current + 1 >= data.frames.length) setPlaying(false);
-        else show(current + 1);
+  function schedule() {
+    timer = setTimeout(function () {
+      timer = null;
+      if (!playing) return;
+      if (current + 1 >= data.frames.length) {
+        setPlaying(false);
+        return;
       }
-    }
-    if (dirty) {
-      dirty = false;
-      renderer.render(scene, camera);
-      hook.renders++;
-      root.setAttribute('data-renders', String(hook.renders));
-    }
-    requestAnimationFrame(tick);
+      show(current + 1);
+      schedule();
+    }, 1000 * (data.frames[current].hold_s || 0.4));
   }
 
-  controls.addEventListener('change', function () { dirty = true; });
+  controls.addEventListener('change', requestRender);
   slider.addEventListener('input', function () {
     setPlaying(false);
     show(+slider.value);
@@ -323,7 +333,7 @@
   window.addEventListener('resize', resize);
 
   // The hook: choose a state, read back what is drawn.
-  hook.setFrame = function (k) { setPlaying(false); show(k); renderer.render(scene, camera); hook.renders++; };
+  hook.setFrame = function (k) { setPlaying(false); show(k); };
   hook.frame = function () { return current; };
   hook.stepPositions = function () {
     return tips.map(function (t) { return [t.position.x, t.position.y, t.position.z]; });
@@ -347,9 +357,6 @@
   resetView();
   show(0);
   applyHash();
-  renderer.render(scene, camera);
-  hook.renders++;
   hook.ready = true;
   root.setAttribute('data-ready', 'true');
-  requestAnimationFrame(tick);
 })();
