@@ -26,6 +26,22 @@ enum Command {
         #[command(subcommand)]
         command: SimCommand,
     },
+    /// Execute CSVTO contact modes closed-loop on a hand (what `dips episode --method
+    /// csvto-sampled` does per mode, the controller seeing only `Hand`); JSON on stdout.
+    Modes {
+        /// `screwdriver` or `card`.
+        #[arg(long)]
+        task: String,
+        /// Comma-separated mode names, e.g. `turn` or `index,middle,both`.
+        #[arg(long)]
+        modes: String,
+        /// Which hand executes the actions.
+        #[arg(long, value_enum, default_value = "mujoco")]
+        hand: HandKind,
+        /// Seed of CSVTO's particles.
+        #[arg(long, default_value_t = 0)]
+        seed: u64,
+    },
     /// Time one 1 s action on both hands (same targets, planned in our world); JSON on stdout.
     Bench {
         /// Actions timed per scene, scenario and hand (in runs of six from the start state).
@@ -146,6 +162,29 @@ fn main() -> ExitCode {
             });
             sim_run(&scene, &commands, &out, hand, noise)
         }
+        Command::Modes {
+            task,
+            modes,
+            hand,
+            seed,
+        } => SceneKind::from_name(&task)
+            .ok_or_else(|| format!("unknown task {task:?} (screwdriver or card)").into())
+            .and_then(|scene| {
+                let names: Vec<String> = modes.split(',').map(|m| m.trim().to_string()).collect();
+                let figures = run::run_csvto_modes(hand, scene, &names, seed, &mut |line| {
+                    eprintln!("{line}")
+                })?;
+                println!(
+                    "{}",
+                    serde_json::to_string_pretty(&serde_json::json!({
+                        "task": scene.name(),
+                        "hand": hand.name(),
+                        "seed": seed,
+                        "modes": figures,
+                    }))?
+                );
+                Ok(())
+            }),
         Command::Bench { actions } => run::bench(actions).and_then(|t| {
             println!(
                 "{}",

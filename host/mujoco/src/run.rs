@@ -297,3 +297,83 @@ pub fn bench(actions: usize) -> Result<Vec<HandTiming>, Box<dyn std::error::Erro
     }
     Ok(out)
 }
+
+/// One CSVTO mode executed closed-loop on a hand ([`dips_host::execute::run_mode`]: a
+/// re-solve from the measured state at every step, the best particle's first step commanded).
+#[derive(Debug, Clone, Serialize)]
+pub struct ModeFigures {
+    /// The mode's name.
+    pub mode: String,
+    /// Measured state row at the start of the mode.
+    pub start_state: Vec<f64>,
+    /// Measured state row at its end.
+    pub end_state: Vec<f64>,
+    /// Change of the object coordinates over the mode.
+    pub object_change: [f64; 3],
+    /// Each step's measured validity, all true when the object stayed valid.
+    pub valid: bool,
+    /// Largest distance (m) of a contact finger from the object after any step (CSVTO's
+    /// `tip_sdf`, measured through our geometry at the measured state).
+    pub worst_contact_gap: f64,
+    /// Wall time of the whole mode (s): CSVTO's solves and the hand's actions.
+    pub seconds: f64,
+}
+
+/// Run CSVTO `modes` (names of the scene's modes) one after the other on a fresh hand of
+/// `kind`, with the task's execution settings and seed `seed` (the same as
+/// `dips episode --method csvto-sampled` uses for each mode).
+pub fn run_csvto_modes(
+    kind: HandKind,
+    scene: SceneKind,
+    modes: &[String],
+    seed: u64,
+    progress: &mut dyn FnMut(&str),
+) -> Result<Vec<ModeFigures>, Box<dyn std::error::Error>> {
+    use dips_host::execute::{ExecSettings, run_mode};
+    use dips_host::problems::mode::parse_mode;
+    let parsed = modes
+        .iter()
+        .map(|m| parse_mode(scene, m))
+        .collect::<Result<Vec<_>, _>>()?;
+    let mut hand = AnyHand::new(kind, scene, None)?;
+    let model = dips_world::kinematics::HandModel::allegro_v4();
+    let settings = ExecSettings::for_task(scene);
+    let mut rng = dips_kernel::rng::KernelRng::seed_from_u64(seed);
+    let mut out = Vec::new();
+    for mode in parsed {
+        let t = Instant::now();
+        let run = run_mode(
+            hand.hand(),
+            &model,
+            mode,
+            &settings,
+            None,
+            &mut rng,
+            progress,
+        )?;
+        let a = scene.action_dim();
+        let object_change = std::array::from_fn(|i| run.end_state[a + i] - run.start_state[a + i]);
+        let contact: Vec<usize> = (0..scene.task_fingers().len())
+            .filter(|&i| mode.contact_mode().in_contact(i))
+            .collect();
+        let worst_contact_gap = run
+            .steps
+            .iter()
+            .flat_map(|s| {
+                contact
+                    .iter()
+                    .map(|&i| s.tip_sdf.get(i).copied().unwrap_or(0.0))
+            })
+            .fold(0.0, f64::max);
+        out.push(ModeFigures {
+            mode: run.mode.to_string(),
+            start_state: run.start_state.clone(),
+            end_state: run.end_state.clone(),
+            object_change,
+            valid: run.steps.iter().all(|s| s.valid),
+            worst_contact_gap,
+            seconds: t.elapsed().as_secs_f64(),
+        });
+    }
+    Ok(out)
+}

@@ -6,7 +6,8 @@ use std::path::Path;
 use std::time::Instant;
 
 use dips_mujoco::run::{
-    AnyHand, HandKind, add_deltas, measured_valid, run_commands, scripted_targets, state_row,
+    AnyHand, HandKind, add_deltas, measured_valid, run_commands, run_csvto_modes, scripted_targets,
+    state_row,
 };
 use dips_mujoco::{
     MujocoError, MujocoHand, MujocoParams, PoseNoise, check_version, check_version_number, locate,
@@ -225,6 +226,31 @@ fn scripted_manipulation_moves_the_objects() {
             SceneKind::Card => assert!(c[1] - c0[1] < -0.005, "Δy {}", c[1] - c0[1]),
         }
     }
+}
+
+/// The controller sees only `Hand`: CSVTO's closed-loop `turn` mode (re-solved from the
+/// measured state every step, `dips_host::execute::run_mode`) runs on the MuJoCo hand as on
+/// our world, and turns the screwdriver clockwise while keeping it valid.
+#[test]
+fn csvto_turn_mode_runs_on_the_mujoco_hand() {
+    let figures = run_csvto_modes(
+        HandKind::Mujoco,
+        SceneKind::Screwdriver,
+        &["turn".to_string()],
+        1,
+        &mut |_| {},
+    )
+    .expect("turn mode");
+    let m = &figures[0];
+    eprintln!(
+        "CSVTO turn on the MuJoCo hand, seed 1: Δ(roll, pitch, yaw) {:.4?}, valid {}, worst contact gap {:.1} mm, {:.1} s",
+        m.object_change,
+        m.valid,
+        m.worst_contact_gap * 1e3,
+        m.seconds
+    );
+    assert!(m.valid);
+    assert!(m.object_change[2] < -0.1, "Δyaw {}", m.object_change[2]);
 }
 
 /// The tracker's noise: seeded (same seed, same reports), of the configured size, and the
