@@ -4,10 +4,10 @@
 use std::path::PathBuf;
 
 use anyhow::Context;
-use clap::Args;
+use clap::{Args, Subcommand};
 use dips_link::KernelTarget;
 
-use dips_datagen::Shard;
+use dips_batch::ShardSpec;
 use dips_eval::{EvalSettings, run_eval, summarize};
 use dips_host::online::{Method, OnlineSettings};
 use dips_host::planning::models_dir;
@@ -17,11 +17,17 @@ use crate::model::EngineArg;
 
 /// Arguments of `dips eval`.
 #[derive(Debug, Args)]
+#[command(args_conflicts_with_subcommands = true)]
 pub struct EvalArgs {
+    /// `merge`: the outputs of a job array's shards as one evaluation.
+    #[command(subcommand)]
+    pub command: Option<EvalCommand>,
     /// Task: `screwdriver` or `card`.
-    #[arg(long)]
-    pub task: String,
-    /// Comma-separated methods (default: every method, in the paper's order).
+    #[arg(long, required_unless_present = "summarize_only")]
+    pub task: Option<String>,
+    /// Comma-separated methods (default: every method, in the paper's order): dips,
+    /// dips-sampled, csvto-sampled, dips-no-replan, dips-k1, dips-max-likelihood,
+    /// diffusion-policy.
     #[arg(long, value_delimiter = ',')]
     pub methods: Option<Vec<String>>,
     /// Trials per method; trial `i` has seed `--first-seed + i` for every method.
@@ -33,8 +39,8 @@ pub struct EvalArgs {
     #[arg(long, default_value_t = 1000, allow_negative_numbers = true)]
     pub first_seed: u64,
     /// Output directory (resumed when it holds an evaluation of the same settings).
-    #[arg(long)]
-    pub out: PathBuf,
+    #[arg(long, required = true)]
+    pub out: Option<PathBuf>,
     /// Episodes run at once (default: the number of cores).
     #[arg(long)]
     pub jobs: Option<usize>,
@@ -42,9 +48,12 @@ pub struct EvalArgs {
     /// `--jobs`, at least 1).
     #[arg(long)]
     pub model_threads: Option<usize>,
-    /// Run only shard I of N (method × trial, in order), e.g. `--shard 0/4`.
+    /// Run only shard I of N (method × trial, in order), e.g. `--shard 0/4`; `auto` takes it
+    /// from a Slurm array (`SLURM_ARRAY_TASK_ID`, `SLURM_ARRAY_TASK_COUNT`), `auto/N` the
+    /// index from Slurm or a Kubernetes Indexed Job (`JOB_COMPLETION_INDEX`) and N given.
+    /// Shards may share `--out`; `dips eval merge` checks that every episode is there.
     #[arg(long, default_value = "0/1")]
-    pub shard: Shard,
+    pub shard: ShardSpec,
     /// Models directory (default: the shipped models, `onnx/models/<task>`).
     #[arg(long)]
     pub models: Option<PathBuf>,
@@ -68,7 +77,7 @@ pub struct EvalArgs {
     /// Only write the summary of the episodes already in `--out`.
     #[arg(long)]
     pub summarize_only: bool,
-    /// No progress bar.
+    /// No progress (a bar on a terminal, a line at most every 30 s in a log).
     #[arg(long)]
     pub quiet: bool,
     /// Methods whose median trial is animated in `report.html` (comma-separated; default:
@@ -81,20 +90,104 @@ pub struct EvalArgs {
     pub episode_reports: String,
 }
 
+/// `dips eval` subcommands.
+#[derive(Debug, Subcommand)]
+pub enum EvalCommand {
+    /// Merge the outputs of a job array's shards into one evaluation (`results.json`, the
+    /// table, the plots, `report.html`): from SOURCES (one directory per shard) into --out, or,
+    /// with no SOURCES, the shards that shared --out. The settings must agree and every
+    /// episode must be there; a missing one is named with its shard.
+    Merge {
+        /// The merged evaluation's directory (may be one of SOURCES).
+        #[arg(long)]
+        out: PathBuf,
+        /// The shards' evaluation directories.
+        sources: Vec<PathBuf>,
+        /// Summarise what is there when episodes are missing (they are listed).
+        #[arg(long)]
+        allow_missing: bool,
+        /// Which trials get their own report: `all`, or `medians`.
+        #[arg(long, default_value = "all", value_parser = ["all", "medians"])]
+        episode_reports: String,
+        /// Methods whose median trial is animated (comma-separated; default every method;
+        /// `none`).
+        #[arg(long, value_delimiter = ',')]
+        animate: Option<Vec<String>>,
+        /// No progress.
+        #[arg(long)]
+        quiet: bool,
+    },
+}
+
+/// What the report of an evaluation is made with.
+struct ReportArgs<'a> {
+    out: &'a std::path::Path,
+    animate: &'a Option<Vec<String>>,
+    episode_reports: &'a str,
+    quiet: bool,
+}
+
+fn merge(command: &EvalCommand) -> anyhow::Result<()> {
+    let EvalCommand::Merge {
+        out,
+        sources,
+        allow_missing,
+        episode_reports,
+        animate,
+        quiet,
+    } = command;
+    let report = dips_eval::merge::merge(out, sources, *allow_missing)?;
+    crate::output::note(&format!(
+        "merged into {}: {} episodes copied, {} already there, {} shard records{}",
+        out.display(),
+        report.copied,
+        report.already_there,
+        report.shards,
+        if report.missing.is_empty() {
+            String::new()
+        } else {
+            format!(
+                "; {} missing (--allow-missing): {}",
+                report.missing.len(),
+                report.missing.join(", ")
+            )
+        }
+    ));
+    let s = summarize(out)?;
+    write_report(
+        &ReportArgs {
+            out,
+            animate,
+            episode_reports,
+            quiet: *quiet,
+        },
+        &s,
+    )?;
+    crate::output::line(dips_eval::summary::markdown(&s).trim_end_matches('\n'))?;
+    Ok(())
+}
+
 /// Run the command.
 pub fn run(args: EvalArgs) -> anyhow::Result<()> {
+    if let Some(command) = &args.command {
+        return merge(command);
+    }
+    let out = args.out.clone().context("--out DIR is required")?;
+    let report_args = ReportArgs {
+        out: &out,
+        animate: &args.animate,
+        episode_reports: &args.episode_reports,
+        quiet: args.quiet,
+    };
     if args.summarize_only {
-        let s = summarize(&args.out)?;
-        write_report(&args, &s)?;
+        let s = summarize(&out)?;
+        write_report(&report_args, &s)?;
         crate::output::line(dips_eval::summary::markdown(&s).trim_end_matches('\n'))?;
         return Ok(());
     }
-    let task = SceneKind::from_name(&args.task).with_context(|| {
-        format!(
-            "unknown task `{}` (expected screwdriver or card)",
-            args.task
-        )
-    })?;
+    let task_name = args.task.as_deref().context("--task is required")?;
+    let task = SceneKind::from_name(task_name)
+        .with_context(|| format!("unknown task `{task_name}` (expected screwdriver or card)"))?;
     let methods = match &args.methods {
         Some(names) => names
             .iter()
@@ -127,7 +220,7 @@ pub fn run(args: EvalArgs) -> anyhow::Result<()> {
         methods,
         trials: args.trials,
         first_seed: args.first_seed,
-        shard: args.shard,
+        shard: crate::batch::resolve_shard(args.shard)?,
         jobs,
         model_threads,
         sampler: args.search.sampler.clone(),
@@ -142,31 +235,33 @@ pub fn run(args: EvalArgs) -> anyhow::Result<()> {
         },
         models: models_dir(args.models.as_deref(), task.task())?,
         engine: args.engine.into(),
-        progress: !args.quiet,
+        progress: crate::batch::progress_mode(args.quiet),
         stop_after: None,
         kernel: args.kernel.clone(),
     };
-    let report = run_eval(&settings, &args.out)?;
-    eprintln!(
-        "eval {}: {} episodes run ({} with errors), {} already done, {:.0} s",
+    let report = run_eval(&settings, &out)?;
+    let episodes = |n: usize| if n == 1 { "episode" } else { "episodes" };
+    crate::output::note(&format!(
+        "eval {}: {} {} run ({} with errors), {} already done, {:.0} s",
         task.name(),
         report.ran,
+        episodes(report.ran),
         report.errors,
         report.skipped,
         report.seconds
-    );
-    let s = summarize(&args.out)?;
-    write_report(&args, &s)?;
+    ));
+    let s = summarize(&out)?;
+    write_report(&report_args, &s)?;
     crate::output::line(dips_eval::summary::markdown(&s).trim_end_matches('\n'))?;
     eprintln!(
         "wrote {} and {}",
-        args.out.join("results.json").display(),
-        args.out.join(dips_report::REPORT_HTML).display()
+        out.join("results.json").display(),
+        out.join(dips_report::REPORT_HTML).display()
     );
     Ok(())
 }
 
-fn write_report(args: &EvalArgs, s: &dips_eval::Summary) -> anyhow::Result<()> {
+fn write_report(args: &ReportArgs<'_>, s: &dips_eval::Summary) -> anyhow::Result<()> {
     use dips_eval::report::{EpisodeReports, ReportOptions};
     let methods: Vec<String> = s.methods.iter().map(|m| m.method.clone()).collect();
     let animate = match &args.animate {
@@ -197,7 +292,7 @@ fn write_report(args: &EvalArgs, s: &dips_eval::Summary) -> anyhow::Result<()> {
     if args.quiet {
         bar.set_draw_target(indicatif::ProgressDrawTarget::hidden());
     }
-    dips_eval::report::write_report(&args.out, s, &options, &mut |done, _| {
+    dips_eval::report::write_report(args.out, s, &options, &mut |done, _| {
         bar.set_position(done as u64)
     })?;
     bar.finish_and_clear();

@@ -2,6 +2,7 @@
 
 use clap::{Parser, Subcommand};
 
+pub mod batch;
 pub mod bench;
 pub mod bench_csvto;
 pub mod bench_firmware;

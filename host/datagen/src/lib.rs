@@ -3,19 +3,25 @@
 //! online step's particles are recorded as training trajectories (`dips datagen`).
 //!
 //! - [`record`]: one demo — an episode and its trajectories ([`record::record_demo`]);
-//! - [`shard`]: `--shard I/N`, the split of demo seeds over the machines of a job array;
+//! - [`settings_file`]: `datagen.json`, the batches a directory was asked for (checked on
+//!   resume and by shards sharing the directory);
 //! - [`run`]: many demos on all cores, resumable, with progress ([`run::generate`]);
 //! - [`manifest`]: the dataset's `manifest.json`, rebuilt from the demo files
-//!   ([`manifest::index`]), which is also how shards are merged.
+//!   ([`manifest::index`]);
+//! - [`merge`]: the shards' outputs (one shared directory or N) as one dataset, every demo
+//!   accounted for ([`merge::merge`]).
+//!
+//! Shards (`--shard I/N`, `--shard auto`) and progress are `dips-batch`'s.
 //!
 //! The file format is `dips-dataset`'s (one safetensors file per demo). See `docs/datagen.md`.
 
 pub mod manifest;
+pub mod merge;
 pub mod record;
 pub mod run;
-pub mod shard;
+pub mod settings_file;
 
 pub use manifest::{Manifest, index};
+pub use merge::{MergeReport, merge};
 pub use record::{DemoOutcome, record_demo};
 pub use run::{DatagenError, DatagenReport, DatagenSettings, generate};
-pub use shard::Shard;

@@ -6,15 +6,15 @@ use std::sync::Mutex;
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::time::Instant;
 
+use dips_batch::{Progress, ProgressMode, Shard};
 use dips_dataset::{DatasetError, read_demo, write_demo};
 use dips_host::execute::{ExecError, ExecSettings, SequenceSource};
 use dips_host::scenes::SceneKind;
-use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use rayon::prelude::*;
 
 use crate::manifest::{Manifest, index};
 use crate::record::record_demo;
-use crate::shard::Shard;
+use crate::settings_file::claim_dir;
 
 /// The git revision this generator was built at (`-dirty` when built from a modified tree).
 pub const GIT_REVISION: &str = env!("DIPS_GIT_REV");
@@ -36,8 +36,8 @@ pub struct DatagenSettings {
     pub sequences: SequenceSource,
     /// CSVTO and execution settings (the task's defaults).
     pub exec: ExecSettings,
-    /// Draw a progress bar on stderr (hidden when stderr is not a terminal).
-    pub progress: bool,
+    /// Progress on stderr: a bar on a terminal, log lines otherwise, or none.
+    pub progress: ProgressMode,
     /// Stop after this many new demos (tests simulate a kill with it).
     pub stop_after: Option<usize>,
 }
@@ -57,7 +57,7 @@ impl DatagenSettings {
             jobs: std::thread::available_parallelism().map_or(2, |n| n.get()),
             sequences: SequenceSource::Pattern,
             exec: ExecSettings::for_task(task),
-            progress: true,
+            progress: ProgressMode::Auto,
             stop_after: None,
         }
     }
@@ -100,6 +100,35 @@ pub enum DatagenError {
     /// A demo file could not be written or read back.
     #[error(transparent)]
     Dataset(#[from] DatasetError),
+    /// A shard record or a settings file could not be written or read.
+    #[error(transparent)]
+    Batch(#[from] dips_batch::BatchError),
+    /// The directory holds demos of other settings.
+    #[error("{path} was made with {field} {theirs}, this run asks for {ours}; {hint}")]
+    OtherSettings {
+        /// The settings file.
+        path: PathBuf,
+        /// The first setting that differs.
+        field: String,
+        /// Its value in the file.
+        theirs: String,
+        /// This run's value.
+        ours: String,
+        /// What to do.
+        hint: &'static str,
+    },
+    /// A merge found demos missing.
+    #[error("{dir}: {missing} of {expected} demos are missing ({detail}); rerun those shards")]
+    Incomplete {
+        /// The merged directory.
+        dir: PathBuf,
+        /// Demos missing.
+        missing: usize,
+        /// Demos expected.
+        expected: usize,
+        /// Which shards and seeds.
+        detail: String,
+    },
     /// An episode failed (the world or the problem); the demos before it are kept.
     #[error("demo seed {seed}: {source}")]
     Episode {
@@ -121,6 +150,8 @@ pub struct DatagenReport {
     pub seconds: f64,
     /// Wall time per generated demo (s), with `jobs` demos in flight.
     pub seconds_per_demo: f64,
+    /// The shard this run generated.
+    pub shard: String,
     /// The dataset directory's manifest after the run (all shards present).
     pub manifest: Manifest,
 }
@@ -136,6 +167,7 @@ pub fn demo_path(dir: &Path, task: SceneKind, seed: u64) -> PathBuf {
 /// the directory.
 pub fn generate(settings: &DatagenSettings, dir: &Path) -> Result<DatagenReport, DatagenError> {
     settings.validate()?;
+    claim_dir(dir, settings)?;
     let demos_dir = dir.join("demos");
     std::fs::create_dir_all(&demos_dir).map_err(|source| DatagenError::Io {
         path: demos_dir.clone(),
@@ -167,25 +199,21 @@ pub fn generate(settings: &DatagenSettings, dir: &Path) -> Result<DatagenReport,
         pending.truncate(n);
     }
     let skipped = seeds.len() - pending.len().min(seeds.len());
-    let bar = ProgressBar::with_draw_target(
-        Some(pending.len() as u64),
-        if settings.progress {
-            ProgressDrawTarget::stderr()
-        } else {
-            ProgressDrawTarget::hidden()
-        },
+    if skipped > 0 {
+        dips_batch::progress::note_before(
+            settings.progress,
+            &format!(
+                "resuming: {skipped} of this shard's {} demos are done",
+                seeds.len()
+            ),
+        );
+    }
+    let progress = Progress::new(
+        format!("datagen {} shard {}", settings.task.name(), settings.shard),
+        pending.len() as u64,
+        ("demo", "demos"),
+        settings.progress,
     );
-    bar.set_style(
-        ProgressStyle::with_template(
-            "{msg} [{elapsed_precise}] {wide_bar} {pos}/{len} demos, {per_sec}, ETA {eta}",
-        )
-        .unwrap_or_else(|_| ProgressStyle::default_bar()),
-    );
-    bar.set_message(format!(
-        "datagen {} shard {}",
-        settings.task.name(),
-        settings.shard
-    ));
     let started = Instant::now();
     let done = AtomicUsize::new(0);
     let failure: Mutex<Option<DatagenError>> = Mutex::new(None);
@@ -221,7 +249,7 @@ pub fn generate(settings: &DatagenSettings, dir: &Path) -> Result<DatagenReport,
             match outcome {
                 Ok(()) => {
                     done.fetch_add(1, Ordering::Relaxed);
-                    bar.inc(1);
+                    progress.item_done(Some(&format!("seed {seed}")));
                 }
                 Err(e) => {
                     if let Ok(mut f) = failure.lock() {
@@ -231,7 +259,7 @@ pub fn generate(settings: &DatagenSettings, dir: &Path) -> Result<DatagenReport,
             }
         })
     });
-    bar.finish_and_clear();
+    progress.finish();
     if let Some(e) = failure.into_inner().ok().flatten() {
         // Keep what finished: the manifest lists it, a re-run resumes after it.
         let _ = index(dir, settings.task);
@@ -240,7 +268,7 @@ pub fn generate(settings: &DatagenSettings, dir: &Path) -> Result<DatagenReport,
     let generated = done.into_inner();
     let seconds = started.elapsed().as_secs_f64();
     let manifest = index(dir, settings.task)?;
-    Ok(DatagenReport {
+    let report = DatagenReport {
         generated,
         skipped,
         seconds,
@@ -249,6 +277,17 @@ pub fn generate(settings: &DatagenSettings, dir: &Path) -> Result<DatagenReport,
         } else {
             0.0
         },
+        shard: settings.shard.to_string(),
         manifest,
-    })
+    };
+    // A run cut short by `stop_after` has not finished its shard.
+    if generated + skipped == seeds.len() {
+        let counts = serde_json::json!({
+            "generated": generated,
+            "skipped": skipped,
+            "seconds_per_demo": report.seconds_per_demo,
+        });
+        dips_batch::write_record(dir, settings.shard, seconds, &counts)?;
+    }
+    Ok(report)
 }

@@ -4,8 +4,9 @@
 
 use std::path::Path;
 
+use dips_batch::{ProgressMode, Shard};
 use dips_datagen::run::demo_path;
-use dips_datagen::{DatagenSettings, Shard, generate, index, record_demo};
+use dips_datagen::{DatagenSettings, generate, merge, record_demo};
 use dips_dataset::{DemoRecord, read_demo};
 use dips_host::execute::{
     ExecSettings, SequenceSource, prior_sequence_for_seed, run_episode, sequence_for_seed,
@@ -27,7 +28,7 @@ fn tiny(task: SceneKind, demos: usize) -> DatagenSettings {
         jobs: 2,
         sequences: SequenceSource::Pattern,
         exec,
-        progress: false,
+        progress: ProgressMode::Hidden,
         stop_after: None,
     }
 }
@@ -65,21 +66,35 @@ fn datagen_is_deterministic_resumable_and_shardable() {
         without_time(resumed.manifest),
         without_time(report.manifest.clone())
     );
-    // Two shards, merged by copying their demos together and indexing.
-    for i in 0..2 {
+    // Two shards in two directories, merged with `merge`; before the second has run, the merge
+    // names its seed and shard instead of dropping it.
+    let parts: Vec<_> = (0..2).map(|i| shards.join(format!("part{i}"))).collect();
+    let run_shard = |i: usize| {
         let shard = Shard { index: i, count: 2 };
-        let part = shards.join(format!("part{i}"));
-        let r = generate(&DatagenSettings { shard, ..s.clone() }, &part).unwrap();
+        let r = generate(&DatagenSettings { shard, ..s.clone() }, &parts[i]).unwrap();
         assert_eq!(r.generated, shard.seeds(10, 3).len());
-        for f in std::fs::read_dir(part.join("demos")).unwrap() {
-            let f = f.unwrap().path();
-            let to = shards.join("merged/demos");
-            std::fs::create_dir_all(&to).unwrap();
-            std::fs::copy(&f, to.join(f.file_name().unwrap())).unwrap();
-        }
-    }
-    let merged = index(&shards.join("merged"), SceneKind::Card).unwrap();
+    };
+    run_shard(0);
+    let e = merge(SceneKind::Card, &shards.join("merged"), &parts[..1], false)
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("1 of 3 demos are missing") && e.contains("seeds 11") && e.contains("1/2"),
+        "{e}"
+    );
+    run_shard(1);
+    let r = merge(SceneKind::Card, &shards.join("merged"), &parts, false).unwrap();
+    assert_eq!((r.copied, r.already_there, r.shards), (1, 2, 2));
+    let merged = r.manifest;
     assert_eq!(merged.seeds, vec![10, 11, 12]);
+    // A shard with other settings is refused by name.
+    let mut other = s.clone();
+    other.exec.particles = 5;
+    let e = generate(&other, &parts[0]).unwrap_err().to_string();
+    assert!(
+        e.contains("exec.particles") && e.contains('4') && e.contains('5'),
+        "{e}"
+    );
     for seed in 10..13 {
         let a = demo(&full, seed);
         assert_eq!(a, demo(&killed, seed), "seed {seed}: resumed differs");

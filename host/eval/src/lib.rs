@@ -5,6 +5,8 @@
 //! - [`settings`]: what an evaluation is, and `eval.json`, which a resumed run must agree with.
 //! - [`run`]: the episodes of one shard, resumable (finished episodes are files and are
 //!   skipped; a kill loses only the episodes in flight), with a progress bar and ETA.
+//! - [`merge`]: the shards' outputs (one shared directory or N) as one evaluation, every
+//!   episode accounted for (`dips eval merge`).
 //! - [`summary`]: `results.json`, the Markdown table and the box plots from whatever episodes
 //!   are in the directory (all shards).
 //! - [`report`]: `report.html` (summary, box plots, one section per method with its median
@@ -19,10 +21,12 @@
 //! DIR/episodes/<method>/seed-<seed>/wall.json     its wall time
 //! DIR/episodes/<method>/seed-<seed>/report.html, timeline.{svg,png}   its report
 //! DIR/episodes/<method>/seed-<seed>/episode.gif   its animation (each method's median trial)
+//! DIR/shards/shard-<I>-of-<N>.json              what each finished shard ran (host, wall time)
 //! DIR/results.json, DIR/results.md, DIR/outcome.{svg,png}, DIR/planning.{svg,png}
 //! DIR/report.html                            the page to open in a browser
 //! ```
 
+pub mod merge;
 pub mod report;
 pub mod run;
 pub mod settings;

@@ -7,13 +7,13 @@ use std::sync::atomic::{AtomicUsize, Ordering};
 use std::time::Instant;
 
 use anyhow::{Context, anyhow};
+use dips_batch::Progress;
 use dips_host::atomic_write::write_atomic;
 use dips_host::execute::ExecSettings;
 use dips_host::online::{Method, run_online};
 use dips_host::planning::{Models, PlanService};
 use dips_host::world::World;
 use dips_link::RemotePlanner;
-use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use serde::{Deserialize, Serialize};
 
 use crate::settings::{EvalSettings, claim_dir, episode_dir};
@@ -166,31 +166,21 @@ pub fn run_eval(settings: &EvalSettings, dir: &Path) -> anyhow::Result<EvalRepor
     if let Some(n) = settings.stop_after {
         pending.truncate(n);
     }
-    let bar = ProgressBar::with_draw_target(
-        Some(pending.len() as u64),
-        if settings.progress {
-            ProgressDrawTarget::stderr()
-        } else {
-            ProgressDrawTarget::hidden()
-        },
-    );
-    bar.set_style(
-        ProgressStyle::with_template(
-            "{prefix} [{elapsed_precise}] {wide_bar} {pos}/{len} episodes, ETA {eta} {msg}",
-        )
-        .unwrap_or_else(|_| ProgressStyle::default_bar()),
-    );
-    bar.set_prefix(format!(
-        "eval {} shard {}",
-        settings.task.name(),
-        settings.shard
-    ));
     if skipped > 0 {
-        bar.println(format!(
-            "resuming: {skipped} of this shard's {} episodes are done",
-            episodes.len()
-        ));
+        dips_batch::progress::note_before(
+            settings.progress,
+            &format!(
+                "resuming: {skipped} of this shard's {} episodes are done",
+                episodes.len()
+            ),
+        );
     }
+    let progress = Progress::new(
+        format!("eval {} shard {}", settings.task.name(), settings.shard),
+        pending.len() as u64,
+        ("episode", "episodes"),
+        settings.progress,
+    );
     let started = Instant::now();
     let errors = AtomicUsize::new(0);
     let failure: Mutex<Option<anyhow::Error>> = Mutex::new(None);
@@ -211,11 +201,13 @@ pub fn run_eval(settings: &EvalSettings, dir: &Path) -> anyhow::Result<EvalRepor
                     let next = queue.lock().ok().and_then(|mut q| q.next());
                     let Some((method, seed)) = next else { return };
                     let ep_dir = episode_dir(dir, method.name(), seed);
+                    let what = format!("{} seed {seed}", method.name());
                     match run_episode(settings, method, seed, &ep_dir) {
-                        Ok(None) => bar.set_message(format!("last: {} seed {seed}", method.name())),
+                        Ok(None) => progress.item_done(Some(&what)),
                         Ok(Some(e)) => {
                             errors.fetch_add(1, Ordering::Relaxed);
-                            bar.println(format!("{} seed {seed} failed: {e}", method.name()));
+                            progress.note(&format!("{what} failed: {e}"));
+                            progress.item_done(Some(&what));
                         }
                         Err(e) => {
                             if let Ok(mut f) = failure.lock() {
@@ -223,19 +215,24 @@ pub fn run_eval(settings: &EvalSettings, dir: &Path) -> anyhow::Result<EvalRepor
                             }
                         }
                     }
-                    bar.inc(1);
                 }
             });
         }
     });
-    bar.finish_and_clear();
+    progress.finish();
     if let Some(e) = failure.into_inner().ok().flatten() {
         return Err(e);
     }
-    Ok(EvalReport {
+    let report = EvalReport {
         ran: pending.len(),
         skipped,
         errors: errors.into_inner(),
         seconds: started.elapsed().as_secs_f64(),
-    })
+    };
+    // A run cut short by `stop_after` has not finished its shard.
+    if report.ran + report.skipped == episodes.len() {
+        dips_batch::write_record(dir, settings.shard, report.seconds, &report)
+            .with_context(|| format!("recording shard {} in {}", settings.shard, dir.display()))?;
+    }
+    Ok(report)
 }

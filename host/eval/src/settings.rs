@@ -3,7 +3,7 @@
 use std::path::{Path, PathBuf};
 
 use anyhow::{Context, bail};
-use dips_datagen::Shard;
+use dips_batch::{ProgressMode, Shard};
 use dips_host::online::{Method, OnlineSettings, SearchDepth, check_time_budget_s};
 use dips_host::planning::parse_sampler;
 use dips_host::scenes::SceneKind;
@@ -106,8 +106,8 @@ pub struct EvalSettings {
     pub models: PathBuf,
     /// Engine of the models.
     pub engine: EngineKind,
-    /// Draw a progress bar on stderr.
-    pub progress: bool,
+    /// Progress on stderr: a bar on a terminal, log lines otherwise, or none.
+    pub progress: ProgressMode,
     /// Stop after this many new episodes (tests simulate a kill with it).
     pub stop_after: Option<usize>,
     /// Where the planning calls are made (`--kernel`); the results are the same bit for bit,
@@ -169,11 +169,7 @@ impl EvalSettings {
             .flat_map(|&m| (0..self.trials).map(move |i| (m, i)))
             .map(|(m, i)| (m, self.seed(i)))
             .collect();
-        all.into_iter()
-            .enumerate()
-            .filter(|(i, _)| i % self.shard.count == self.shard.index)
-            .map(|(_, e)| e)
-            .collect()
+        self.shard.take(&all)
     }
 
     /// The settings every episode of the directory must share.

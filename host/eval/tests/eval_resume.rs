@@ -4,7 +4,7 @@
 
 use std::path::PathBuf;
 
-use dips_datagen::Shard;
+use dips_batch::{ProgressMode, Shard};
 use dips_eval::report::{EpisodeReports, ReportOptions, median_trial, write_report};
 use dips_eval::{EvalSettings, run_eval, summarize};
 use dips_host::online::{Method, OnlineSettings, SearchDepth};
@@ -41,7 +41,7 @@ fn settings(methods: Vec<Method>, trials: usize) -> EvalSettings {
         },
         models: default_models_dir(Task::Card).unwrap(),
         engine: EngineKind::Kernel,
-        progress: false,
+        progress: ProgressMode::Hidden,
         stop_after: None,
         kernel: dips_link::KernelTarget::InProcess,
     }
@@ -180,4 +180,66 @@ fn every_method_runs_one_mode() {
         );
     }
     let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// Two shards in two directories merge into the evaluation one process makes: the same
+/// episodes, a shard record each; before the second shard has run, the merge names its
+/// episodes and shard instead of dropping them, and a shard of other settings is refused.
+#[test]
+fn shards_in_two_directories_merge_into_one_evaluation() {
+    let root = scratch("merge");
+    let parts: Vec<PathBuf> = (0..2).map(|i| root.join(format!("part{i}"))).collect();
+    let shard = |index| {
+        let mut s = settings(vec![Method::CsvtoSampled], 2);
+        s.shard = Shard { index, count: 2 };
+        s
+    };
+    run_eval(&shard(0), &parts[0]).unwrap();
+    let merged = root.join("merged");
+    let e = dips_eval::merge::merge(&merged, &parts[..1], false)
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("1 of 2 episodes are missing")
+            && e.contains("csvto-sampled seed 1001 (shard 1/2)"),
+        "{e}"
+    );
+    run_eval(&shard(1), &parts[1]).unwrap();
+    let report = dips_eval::merge::merge(&merged, &parts, false).unwrap();
+    assert_eq!(
+        (report.copied, report.already_there, report.shards),
+        (1, 1, 2)
+    );
+    assert!(report.missing.is_empty());
+    let single = root.join("single");
+    run_eval(&settings(vec![Method::CsvtoSampled], 2), &single).unwrap();
+    for seed in [1000, 1001] {
+        let result = |dir: &PathBuf| {
+            let path = dir.join(format!("episodes/csvto-sampled/seed-{seed}/result.json"));
+            let v: serde_json::Value =
+                serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap();
+            (
+                v["final_distance_m"].clone(),
+                v["modes"].clone(),
+                v["valid"].clone(),
+            )
+        };
+        assert_eq!(result(&single), result(&merged), "seed {seed}");
+    }
+    assert_eq!(summarize(&merged).unwrap().trials.len(), 2);
+    // A shard run with another sampler is named, with the setting that differs.
+    let mut other = settings(vec![Method::CsvtoSampled], 2);
+    other.sampler = "ddim:4".into();
+    other.online.sampler = parse_sampler("ddim:4").unwrap();
+    other.stop_after = Some(0); // its eval.json is all the merge reads first
+    let odd = root.join("odd");
+    run_eval(&other, &odd).unwrap();
+    let e = dips_eval::merge::merge(&merged, &[odd], false)
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("settings.sampler") && e.contains("ddim:4"),
+        "{e}"
+    );
+    std::fs::remove_dir_all(&root).ok();
 }
