@@ -37,7 +37,8 @@ pub struct EpisodeArgs {
     )]
     pub seed: u64,
     /// Execute this comma-separated mode sequence instead of the prior's draw (dips-sampled,
-    /// csvto-sampled).
+    /// csvto-sampled). Modes: screwdriver `turn`, `index-regrasp`, `thumb-middle-regrasp`;
+    /// card `both`, `index`, `middle`, `regrasp` (e.g. `--modes both,index,both`).
     #[arg(long, value_delimiter = ',')]
     pub modes: Option<Vec<String>>,
     /// Models directory (default: the shipped models, `onnx/models/<task>`).

@@ -170,3 +170,37 @@ fn commands_that_write_a_file_say_so() {
     assert_eq!(code, Some(0), "{err}");
     assert_eq!(err.trim(), format!("wrote {}", out.display()));
 }
+
+#[test]
+fn help_lists_the_allowed_values() {
+    let help = |args: &[&str]| {
+        let out = Command::new(env!("CARGO_BIN_EXE_dips"))
+            .args(args)
+            .arg("--help")
+            .output()
+            .unwrap();
+        String::from_utf8_lossy(&out.stdout).replace('\n', " ")
+    };
+    let episode = help(&["episode"]);
+    for v in [
+        "screwdriver",
+        "card",
+        "dips-max-likelihood",
+        "diffusion-policy",
+        "index-regrasp",
+        "thumb-middle-regrasp",
+        "regrasp",
+        "ddim:STEPS",
+    ] {
+        assert!(episode.contains(v), "episode --help lacks {v}: {episode}");
+    }
+    let eval = help(&["eval"]);
+    for v in [
+        "dips-k1",
+        "dips-no-replan",
+        "csvto-sampled",
+        "diffusion-policy",
+    ] {
+        assert!(eval.contains(v), "eval --help lacks {v}: {eval}");
+    }
+}
