@@ -21,11 +21,16 @@ fi
 
 if ! command -v chromium >/dev/null 2>&1; then
     echo "chromium is missing: installing Debian's package"
-    if ! { apt-get update && DEBIAN_FRONTEND=noninteractive apt-get install -y chromium; } \
+    if ! { timeout 300 apt-get update &&
+        DEBIAN_FRONTEND=noninteractive timeout 600 apt-get install -y chromium; } \
         >/tmp/check-report-3d-apt.log 2>&1 || ! command -v chromium >/dev/null 2>&1; then
         echo "skipped: chromium could not be installed (see /tmp/check-report-3d-apt.log)"
         exit 0
     fi
+fi
+if ! command -v python3 >/dev/null 2>&1; then
+    echo "skipped: the checks are written in python3, which is missing"
+    exit 0
 fi
 chromium --version 2>/dev/null || true
 
