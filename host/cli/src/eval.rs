@@ -30,13 +30,19 @@ pub struct EvalArgs {
     /// diffusion-policy.
     #[arg(long, value_delimiter = ',')]
     pub methods: Option<Vec<String>>,
-    /// Trials per method; trial `i` has seed `--first-seed + i` for every method.
-    #[arg(long, default_value_t = 10)]
-    pub trials: usize,
+    /// Trials per method (default 10); trial `i` has seed `--first-seed + i` for every
+    /// method. With `--summarize-only`, the trials expected in `--out`.
+    #[arg(long, value_parser = crate::search_args::parse_positive)]
+    pub trials: Option<usize>,
     /// Seed of trial 0. The default, 1000, is above every seed the shipped models were trained
     /// on (demos below 140). Seeds 1000–1009 were also looked at in diagnoses
     /// (`docs/results/README.md`); fresh seeds give an untouched evaluation.
-    #[arg(long, default_value_t = 1000, allow_negative_numbers = true)]
+    #[arg(
+        long,
+        default_value_t = 1000,
+        allow_negative_numbers = true,
+        value_parser = crate::search_args::parse_seed
+    )]
     pub first_seed: u64,
     /// Output directory (resumed when it holds an evaluation of the same settings).
     #[arg(long, required = true)]
@@ -181,6 +187,9 @@ pub fn run(args: EvalArgs) -> anyhow::Result<()> {
     };
     if args.summarize_only {
         let s = summarize(&out)?;
+        for line in dips_eval::summary::shortfall(&s, args.trials) {
+            crate::output::note(&line);
+        }
         write_report(&report_args, &s)?;
         crate::output::line(dips_eval::summary::markdown(&s).trim_end_matches('\n'))?;
         return Ok(());
@@ -218,7 +227,7 @@ pub fn run(args: EvalArgs) -> anyhow::Result<()> {
     let settings = EvalSettings {
         task,
         methods,
-        trials: args.trials,
+        trials: args.trials.unwrap_or(10),
         first_seed: args.first_seed,
         shard: crate::batch::resolve_shard(args.shard)?,
         jobs,
@@ -253,7 +262,7 @@ pub fn run(args: EvalArgs) -> anyhow::Result<()> {
     let s = summarize(&out)?;
     write_report(&report_args, &s)?;
     crate::output::line(dips_eval::summary::markdown(&s).trim_end_matches('\n'))?;
-    eprintln!(
+    crate::note!(
         "wrote {} and {}",
         out.join("results.json").display(),
         out.join(dips_report::REPORT_HTML).display()
