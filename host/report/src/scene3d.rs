@@ -421,6 +421,51 @@ mod tests {
     }
 
     #[test]
+    fn a_published_episode_report_has_the_3d_view_of_every_state() {
+        let src = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("../../docs/results/2026-11-26/card/episodes/dips/seed-3008/result.json");
+        let dir = std::env::temp_dir().join(format!("dips-report-3d-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        std::fs::copy(&src, dir.join("result.json")).unwrap();
+        let rec = Recording::read(&dir.join("result.json")).unwrap();
+        crate::write_episode_report(&dir, &rec, false, &mut |_, _| {}).unwrap();
+        let html = std::fs::read_to_string(dir.join(crate::REPORT_HTML)).unwrap();
+        assert!(html.contains("<h2 id=\"scene3d\">3D view</h2>"));
+        assert!(html.contains(THREE_JS) && html.contains(VIEWER_JS));
+        let start = html.find(DATA_ID).unwrap() + DATA_ID.len() + 2;
+        let end = start + html[start..].find("</script>").unwrap();
+        let data: serde_json::Value = serde_json::from_str(&html[start..end]).unwrap();
+        let frames = data["frames"].as_array().unwrap();
+        assert_eq!(frames.len(), rec.frames.len());
+        // Contacts and forces are carried; every state has its hand and object.
+        assert!(
+            frames
+                .iter()
+                .any(|f| !f["contacts"].as_array().unwrap().is_empty())
+        );
+        assert!(
+            frames
+                .iter()
+                .all(|f| f["hand"].as_array().unwrap().len() == 72)
+        );
+        // The card's last state: the hand where our kinematics puts it.
+        let mut world = World::new(SceneKind::Card);
+        world.set_state(&rec.frames.last().unwrap().state).unwrap();
+        let tips = world.tip_centers();
+        let last = frames.last().unwrap()["hand"].as_array().unwrap();
+        for f in Finger::ALL {
+            let o = 3 * (f.index() * POINTS_PER_FINGER + POINTS_PER_FINGER - 1);
+            for d in 0..3 {
+                assert!((last[o + d].as_f64().unwrap() - tips[f.index()][d]).abs() < 1e-5);
+            }
+        }
+        for f in crate::html::referenced_files(&html) {
+            assert!(dir.join(&f).is_file(), "missing {f}");
+        }
+        let _ = std::fs::remove_dir_all(&dir);
+    }
+
+    #[test]
     fn the_markup_holds_the_data_three_and_the_viewer_safely() {
         let world = World::new(SceneKind::Card);
         let rec = recording(SceneKind::Card, vec![world.state(); 3]);
