@@ -191,8 +191,16 @@ pub fn hand_points(world: &World) -> Vec<Point3<f64>> {
 }
 
 /// The scene data of a recording: every frame's hand points from our kinematics, the object
-/// pose, contacts and goals.
+/// pose, contacts and goals. A state the world refuses (a wrong length, a non-finite value)
+/// is drawn as the state before it, its label saying why, so that the report of such an
+/// episode is still written; only a recording with no state is an error.
 pub fn scene_data(rec: &Recording) -> Result<SceneData, ReportError> {
+    if rec.frames.is_empty() {
+        return Err(ReportError::Input {
+            path: rec.title.clone(),
+            reason: "holds no states; nothing to draw".into(),
+        });
+    }
     let scene = rec.scene;
     let mut world = World::new(scene);
     let task = scene.task_fingers();
@@ -245,12 +253,7 @@ pub fn scene_data(rec: &Recording) -> Result<SceneData, ReportError> {
     let mut goals: Vec<GoalData> = Vec::new();
     let mut frames = Vec::with_capacity(rec.frames.len());
     for (k, frame) in rec.frames.iter().enumerate() {
-        world
-            .set_state(&frame.state)
-            .map_err(|e| ReportError::Input {
-                path: rec.title.clone(),
-                reason: format!("frame {k}: {e}"),
-            })?;
+        let refused = world.set_state(&frame.state).err();
         let hand = hand_points(&world).iter().flat_map(p3).collect();
         let mut goal_ids = Vec::with_capacity(frame.goals.len());
         for g in &frame.goals {
@@ -291,7 +294,13 @@ pub fn scene_data(rec: &Recording) -> Result<SceneData, ReportError> {
                 .collect(),
             goals: goal_ids,
             hold_s: frame.hold_s,
-            label: frame.label.clone(),
+            label: match refused {
+                None => frame.label.clone(),
+                Some(e) => format!(
+                    "{} · state {k} not drawn ({e}); the previous one is",
+                    frame.label
+                ),
+            },
         });
     }
     Ok(SceneData {
@@ -410,6 +419,13 @@ mod tests {
                     }
                 }
             }
+            // A state the world refuses keeps the previous one, and says so.
+            let mut bad = state.clone();
+            bad[0] = f64::NAN;
+            let rec = recording(scene, vec![state.clone(), bad]);
+            let kept = scene_data(&rec).unwrap();
+            assert_eq!(kept.frames[1].hand, kept.frames[0].hand);
+            assert!(kept.frames[1].label.contains("not drawn"));
             // Bending the joints moved the fingertips.
             assert_ne!(data.frames[0].hand, data.frames[1].hand);
             // The object's pose is the world's.
