@@ -451,10 +451,10 @@ impl Hand for MujocoHand {
                 index,
                 value,
             }),
-            other => HandError::World(WorldError::Solver {
-                substep: 0,
-                status: format!("MuJoCo: {other}"),
-            }),
+            other => HandError::Other {
+                hand: "MuJoCo",
+                message: other.to_string(),
+            },
         })
     }
 

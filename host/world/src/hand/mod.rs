@@ -68,6 +68,15 @@ pub enum HandError {
         /// What is wrong.
         message: String,
     },
+    /// Another hand (a physics engine such as the MuJoCo hand, a driver) could not execute
+    /// the command.
+    #[error("{hand} hand: {message}")]
+    Other {
+        /// Which hand.
+        hand: &'static str,
+        /// What went wrong.
+        message: String,
+    },
     /// Replay diverged from the recording.
     #[error(
         "replay diverged at step {step}: state differs by {deviation:e} (tolerance {tolerance:e})"
