@@ -29,7 +29,7 @@ use dips_kernel::session::PlanSpec;
 
 use crate::execute::episode::{CARD_MODES, SCREWDRIVER_MODES};
 use crate::execute::{
-    EpisodeResult, ExecSettings, PlanRecord, hand_state, mode_goal, pose_valid,
+    EpisodeResult, ExecSettings, ParticleSummary, PlanRecord, hand_state, mode_goal, pose_valid,
     prior_sequence_for_seed, run_mode,
 };
 use crate::hand::Hand;
@@ -354,6 +354,15 @@ fn plan_call<H: Hand + ?Sized>(
             .is_finite()
             .then_some(report.effective_particles),
         seconds,
+        particles_diagnostics: planner.last_diagnostics().and_then(|d| {
+            let modes: Vec<ModeId> = task.candidate_modes().collect();
+            ParticleSummary::of(&d, |i| {
+                modes
+                    .get(i)
+                    .and_then(|&id| Mode::from_id(task, id))
+                    .map(|m| m.name().to_string())
+            })
+        }),
     };
     Ok((modes, record))
 }

@@ -21,7 +21,7 @@ use dips_kernel::engine::DenoiserEngine;
 use dips_kernel::mode::ModeId;
 use dips_kernel::mode::Task;
 use dips_kernel::prior::MarkovPrior;
-use dips_kernel::search::{PaperPlanner, Planner, SearchReport, SearchStatus};
+use dips_kernel::search::{PaperPlanner, ParticleDiagnostics, Planner, SearchReport, SearchStatus};
 use dips_kernel::session::{PlanSpec, SessionError, SessionLayout, plan_with_engines};
 use dips_onnx::{AnyEngine, EngineKind, Expectation, Role};
 
@@ -393,17 +393,29 @@ pub trait PlanService {
     /// Where the plans are made, for messages and result files (`in-process`,
     /// `firmware-sim (spawned)`, `tcp://HOST:PORT`).
     fn location(&self) -> String;
+
+    /// What the particles and Ψ did in the last call (`docs/particles.md`), where the service
+    /// can see it: in process yes, over the wire not (the kernel keeps them to itself).
+    fn last_diagnostics(&self) -> Option<ParticleDiagnostics> {
+        None
+    }
 }
 
 impl<const K: usize, const N: usize, const O: usize, const S: usize> PlanService
     for Session<K, N, O, S>
 {
     fn plan_call(&mut self, spec: &PlanSpec, clock: &mut dyn Clock) -> anyhow::Result<PlanOutcome> {
-        Ok(PlanOutcome::from(&self.plan(spec, &mut &mut *clock)?))
+        let report = self.plan(spec, &mut &mut *clock)?;
+        self.last_diagnostics = Some(report.particle_diagnostics);
+        Ok(PlanOutcome::from(&report))
     }
 
     fn location(&self) -> String {
         "in-process".into()
+    }
+
+    fn last_diagnostics(&self) -> Option<ParticleDiagnostics> {
+        self.last_diagnostics
     }
 }
 
@@ -419,6 +431,7 @@ pub struct Session<
     models: Models,
     planner: Box<Planner<K, N, O, S>>,
     work: Vec<f32>,
+    last_diagnostics: Option<ParticleDiagnostics>,
 }
 
 /// The session with the paper's capacities.
@@ -439,6 +452,7 @@ impl<const K: usize, const N: usize, const O: usize, const S: usize> Session<K, 
             models,
             planner: Box::new(Planner::new()),
             work: Vec::new(),
+            last_diagnostics: None,
         }
     }
 

@@ -246,3 +246,31 @@ fn resampling_frequencies_follow_normalised_scores() {
         assert!((f64::from(*c) / 4000.0 - p).abs() < 0.03, "{counts:?}");
     }
 }
+
+/// The report's particle diagnostics over the hand case's whole tree (4 expansions × 3 modes ×
+/// k = 2): Ψ's histogram and moments over all 24 segments, and the effective number of Ψ alone
+/// per child (mode 0 at the root: Ψ [0, 0.1] keeps 1; deeper: [0.2, 1.0] keeps 1.44/1.04;
+/// the other modes' equal Ψ keep both).
+#[test]
+fn particle_diagnostics_count_the_whole_tree() {
+    let r = run(&config(5), -100.0, &uniform(), None);
+    let d = r.particle_diagnostics;
+    assert_eq!(d.children, 12);
+    assert_eq!(d.mode_children[..3], [4, 4, 4]);
+    assert_eq!(d.psi_histogram, [1, 1, 3, 0, 0, 16, 0, 0, 0, 3]);
+    let psi_sum = 0.1 + 16.0 * 0.5 + 3.0 * 0.2 + 3.0;
+    assert!(close(d.psi_sum, psi_sum), "{}", d.psi_sum);
+    assert!(close(d.ess_psi_min, 1.0));
+    let deep = 1.2f32 * 1.2 / (0.04 + 1.0);
+    assert!(
+        close(d.ess_psi_sum, 1.0 + 4.0 + 3.0 * (deep + 4.0)),
+        "{}",
+        d.ess_psi_sum
+    );
+    // Both samples of a mode end at the same x: no spread, and the weights move nothing.
+    assert_eq!(d.progress_spread_sum[..3], [0.0; 3]);
+    assert_eq!(d.weight_shift_sum, 0.0);
+    // k = 2 draws keep one or two distinct samples per child.
+    assert!((12..=24).contains(&d.distinct_sum), "{}", d.distinct_sum);
+    assert!(d.ess_scores_min >= 1.0 - 1e-6 && d.ess_scores_sum <= 24.0 + 1e-4);
+}

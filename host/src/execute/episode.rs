@@ -1,9 +1,11 @@
 //! Closed-loop episodes: a contact sequence executed mode by mode, and its result
 //! (`docs/contracts.md` §5).
 
+use std::collections::BTreeMap;
 use std::path::Path;
 
 use dips_kernel::rng::KernelRng;
+use dips_kernel::search::ParticleDiagnostics;
 use serde::Serialize;
 
 use super::mode_run::{
@@ -285,6 +287,80 @@ pub struct PlanRecord {
     pub effective_particles: Option<f32>,
     /// Wall time of the call (s).
     pub seconds: f64,
+    /// What the particles and Ψ did in the call (in-process planning only; a kernel over the
+    /// wire keeps them to itself). `docs/particles.md`.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub particles_diagnostics: Option<ParticleSummary>,
+}
+
+/// [`ParticleDiagnostics`] of one planning call as means, for `result.json`.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct ParticleSummary {
+    /// Children created over the call (one per mode per expansion).
+    pub children: u32,
+    /// Mean effective number of a child's accumulated scores before resampling (out of `k`).
+    pub ess_scores_mean: f32,
+    /// The smallest.
+    pub ess_scores_min: f32,
+    /// Mean effective number of Ψ alone over a child's `k` fresh samples (`k` when Ψ is flat).
+    pub ess_psi_mean: f32,
+    /// The smallest.
+    pub ess_psi_min: f32,
+    /// Mean distinct samples drawn by a child's resampling.
+    pub distinct_mean: f32,
+    /// Ψ over every sampled segment: mean and standard deviation.
+    pub psi_mean: f32,
+    /// Standard deviation of Ψ.
+    pub psi_std: f32,
+    /// Ψ histogram, 10 bins over `[0, 1]`.
+    pub psi_histogram: Vec<u32>,
+    /// Per mode (by name): mean standard deviation of a child's `k` samples' end progress
+    /// (yaw in rad, card y in m).
+    pub progress_spread: BTreeMap<String, f32>,
+    /// Mean |weighted − plain mean| of a child's samples' end progress: how far the scores
+    /// move the estimate (rad or m).
+    pub weight_shift_mean: f32,
+}
+
+impl ParticleSummary {
+    /// The means of `d`; `mode_name(i)` names candidate mode `i`. `None` when the call created
+    /// no child.
+    pub fn of(
+        d: &ParticleDiagnostics,
+        mode_name: impl Fn(usize) -> Option<String>,
+    ) -> Option<Self> {
+        if d.children == 0 {
+            return None;
+        }
+        let n = d.children as f32;
+        let segments: u32 = d.psi_histogram.iter().sum();
+        let (psi_mean, psi_std) = if segments > 0 {
+            let m = d.psi_sum / segments as f32;
+            (m, (d.psi_sq_sum / segments as f32 - m * m).max(0.0).sqrt())
+        } else {
+            (f32::NAN, f32::NAN)
+        };
+        let progress_spread = (0..d.mode_children.len())
+            .filter(|&i| d.mode_children[i] > 0)
+            .filter_map(|i| {
+                mode_name(i)
+                    .map(|name| (name, d.progress_spread_sum[i] / d.mode_children[i] as f32))
+            })
+            .collect();
+        Some(Self {
+            children: d.children,
+            ess_scores_mean: d.ess_scores_sum / n,
+            ess_scores_min: d.ess_scores_min,
+            ess_psi_mean: d.ess_psi_sum / n,
+            ess_psi_min: d.ess_psi_min,
+            distinct_mean: d.distinct_sum as f32 / n,
+            psi_mean,
+            psi_std,
+            psi_histogram: d.psi_histogram.to_vec(),
+            progress_spread,
+            weight_shift_mean: d.weight_shift_sum / n,
+        })
+    }
 }
 
 impl EpisodeResult {

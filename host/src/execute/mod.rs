@@ -11,9 +11,9 @@ pub mod mode_run;
 pub mod settings;
 
 pub use episode::{
-    EpisodeResult, PlanRecord, SequenceSource, prior_sequence_for_seed, run_episode,
-    run_episode_observed, run_episode_on, sample_markov_sequence, sample_prior_sequence,
-    sequence_for_seed,
+    EpisodeResult, ParticleSummary, PlanRecord, SequenceSource, prior_sequence_for_seed,
+    run_episode, run_episode_observed, run_episode_on, sample_markov_sequence,
+    sample_prior_sequence, sequence_for_seed,
 };
 pub use mode_run::{
     ExecError, ModeRun, StepLog, StepParticles, hand_state, mode_goal, pose_valid, run_mode,

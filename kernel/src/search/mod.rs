@@ -17,5 +17,8 @@ pub mod traits;
 
 pub use config::{CostToCome, MAX_PLAN_LEN, SCREWDRIVER_NODE_BUDGET, SearchConfig, SearchVariant};
 pub use planner::{PaperPlanner, Planner, Problem};
-pub use report::{ApproximateReason, Capacity, SearchReport, SearchStats, SearchStatus};
+pub use report::{
+    ApproximateReason, Capacity, PSI_BINS, ParticleDiagnostics, SearchReport, SearchStats,
+    SearchStatus,
+};
 pub use traits::{SegmentSampler, SegmentScorer, TaskObjective};

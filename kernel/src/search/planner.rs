@@ -14,7 +14,9 @@ use super::config::{CostToCome, MAX_PLAN_LEN, SearchConfig, SearchVariant};
 use super::particles::{
     accumulate_scores, argmax_positive, normalized_weights, resample, weighted_sum,
 };
-use super::report::{ApproximateReason, Capacity, SearchReport, SearchStats, SearchStatus};
+use super::report::{
+    ApproximateReason, Capacity, ParticleDiagnostics, SearchReport, SearchStats, SearchStatus,
+};
 use super::traits::{SegmentSampler, SegmentScorer, TaskObjective};
 use crate::budget::Clock;
 use crate::mode::{ContactMode, MAX_MODES, MAX_STATE_DIM, ModeId, SegmentDims, Task};
@@ -156,6 +158,73 @@ impl<const K: usize> Particles<K> {
     }
 }
 
+/// Count one child in [`ParticleDiagnostics`]: the effective numbers of its scores and of
+/// Ψ alone, the distinct samples drawn, its mode's spread of end progress, and how far the
+/// scores move the mean progress. `progress(j)` is sample `j`'s end progress.
+fn observe_child<const K: usize>(
+    d: &mut ParticleDiagnostics,
+    mode: usize,
+    scores: &[f32],
+    psi: &[f32],
+    valid: &[bool],
+    drawn: &[u16],
+    progress: impl Fn(usize) -> f32,
+) {
+    let k = scores.len();
+    let ess = |v: &mut dyn Iterator<Item = f32>| {
+        let (mut s, mut s2) = (0.0f32, 0.0f32);
+        for x in v {
+            s += x;
+            s2 += x * x;
+        }
+        if s2 > 0.0 { s * s / s2 } else { 0.0 }
+    };
+    let e_scores = ess(&mut scores.iter().copied());
+    let e_psi = ess(&mut psi.iter().zip(valid).map(|(&p, &ok)| {
+        if ok && p.is_finite() {
+            p.clamp(0.0, 1.0)
+        } else {
+            0.0
+        }
+    }));
+    d.children += 1;
+    d.ess_scores_sum += e_scores;
+    d.ess_scores_min = d.ess_scores_min.min(e_scores);
+    d.ess_psi_sum += e_psi;
+    d.ess_psi_min = d.ess_psi_min.min(e_psi);
+    let mut seen = [false; K];
+    for &j in drawn {
+        seen[usize::from(j)] = true;
+    }
+    d.distinct_sum += seen[..k].iter().filter(|&&b| b).count() as u32;
+    for (&p, &ok) in psi.iter().zip(valid) {
+        if ok {
+            d.count_psi(p);
+        }
+    }
+    let (mut n, mut sum, mut sum2, mut wsum, mut wtot) = (0.0f32, 0.0f32, 0.0f32, 0.0f32, 0.0f32);
+    for j in (0..k).filter(|&j| valid[j]) {
+        let x = progress(j);
+        if !x.is_finite() {
+            continue;
+        }
+        n += 1.0;
+        sum += x;
+        sum2 += x * x;
+        wsum += scores[j] * x;
+        wtot += scores[j];
+    }
+    if n > 0.0 && mode < MAX_MODES {
+        let mean = sum / n;
+        let var = (sum2 / n - mean * mean).max(0.0);
+        d.progress_spread_sum[mode] += libm::sqrtf(var);
+        d.mode_children[mode] += 1;
+        if wtot > 0.0 {
+            d.weight_shift_sum += libm::fabsf(wsum / wtot - mean);
+        }
+    }
+}
+
 /// The result node of a search, with its particles' mean state copied out.
 #[derive(Debug, Clone, Copy)]
 struct Outcome {
@@ -195,6 +264,7 @@ pub struct Planner<const K: usize, const N: usize, const O: usize, const S: usiz
     psi: [[f32; K]; MAX_MODES],
     cost: [[f32; K]; MAX_MODES],
     valid: [[bool; K]; MAX_MODES],
+    diag: ParticleDiagnostics,
 }
 
 impl<const K: usize, const N: usize, const O: usize, const S: usize> Default
@@ -229,6 +299,7 @@ impl<const K: usize, const N: usize, const O: usize, const S: usize> Planner<K, 
             psi: [[0.0; K]; MAX_MODES],
             cost: [[0.0; K]; MAX_MODES],
             valid: [[false; K]; MAX_MODES],
+            diag: ParticleDiagnostics::EMPTY,
         }
     }
 
@@ -254,6 +325,7 @@ impl<const K: usize, const N: usize, const O: usize, const S: usize> Planner<K, 
     {
         let t0 = clock.now_us();
         let mut stats = SearchStats::default();
+        self.diag = ParticleDiagnostics::EMPTY;
         let mut report = match self.setup(config, problem, sampler, scorer, objective) {
             Err(status) => SearchReport::empty(status, problem.executed),
             Ok(ctx) => self.search(
@@ -263,6 +335,7 @@ impl<const K: usize, const N: usize, const O: usize, const S: usize> Planner<K, 
         stats.elapsed_ms =
             u32::try_from(clock.now_us().saturating_sub(t0) / 1000).unwrap_or(u32::MAX);
         report.stats = stats;
+        report.particle_diagnostics = self.diag;
         report
     }
 
@@ -580,6 +653,18 @@ impl<const K: usize, const N: usize, const O: usize, const S: usize> Planner<K, 
                 stats.dead_children += 1;
                 continue;
             }
+            observe_child::<K>(
+                &mut self.diag,
+                m,
+                &scores[..k],
+                &psi[base..base + k],
+                &valid[base..base + k],
+                &idx[..kept],
+                |j| {
+                    let seg = (base + j) * floats + end_row;
+                    objective.progress(&segments[seg..seg + sd])
+                },
+            );
             let mut child = Particles::<K>::EMPTY;
             child.len = kept;
             for (i, &j) in idx[..kept].iter().enumerate() {

@@ -1,7 +1,7 @@
 //! What a planning call returns ([`SearchReport`]).
 
 use super::config::{ConfigError, MAX_PLAN_LEN};
-use crate::mode::{MAX_STATE_DIM, ModeId};
+use crate::mode::{MAX_MODES, MAX_STATE_DIM, ModeId};
 
 /// A capacity of the planner (or of the kernel) that a call needed more of.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -94,6 +94,85 @@ pub struct SearchStats {
     pub elapsed_ms: u32,
 }
 
+/// Bins of [`ParticleDiagnostics::psi_histogram`] over `[0, 1]`.
+pub const PSI_BINS: usize = 10;
+
+/// What the particles and the discriminator did over one planning call: how many particles
+/// the weights keep, how far apart a mode's samples end, what Ψ said about them, and how far
+/// the weights moved a child's expected progress from its samples' plain mean. Sums, so a
+/// caller divides by [`ParticleDiagnostics::children`] (or the per-mode counts); fixed size,
+/// no heap. Filled for the particle variant and max-likelihood alike; with `k = 1` every
+/// spread is 0 and every effective number 1.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ParticleDiagnostics {
+    /// Children created (one per mode per expansion that kept a particle).
+    pub children: u32,
+    /// Σ over children of the effective number `1 / Σ w²` of the accumulated scores
+    /// `S' = γ^d·Ψ + S_parent`, normalised, before resampling (`k` when they are equal).
+    pub ess_scores_sum: f32,
+    /// The smallest of those.
+    pub ess_scores_min: f32,
+    /// Σ over children of the effective number of this expansion's Ψ alone, normalised: how
+    /// many of the `k` fresh samples Ψ's own weights keep (`k` for a flat Ψ).
+    pub ess_psi_sum: f32,
+    /// The smallest of those.
+    pub ess_psi_min: f32,
+    /// Σ over children of the distinct samples the resampling drew (`k` draws with
+    /// replacement; about `0.63·k` when the scores are equal).
+    pub distinct_sum: u32,
+    /// Histogram of Ψ over every finite sampled segment, [`PSI_BINS`] bins over `[0, 1]`
+    /// (Ψ is clamped to it before use).
+    pub psi_histogram: [u32; PSI_BINS],
+    /// Σ Ψ and Σ Ψ² over the same segments (mean and spread).
+    pub psi_sum: f32,
+    /// Σ Ψ².
+    pub psi_sq_sum: f32,
+    /// Per candidate mode (the task's order): Σ over its children of the standard deviation of
+    /// the `k` samples' end progress (screwdriver yaw in rad, card `y` in m).
+    pub progress_spread_sum: [f32; MAX_MODES],
+    /// Per candidate mode: children counted in [`Self::progress_spread_sum`].
+    pub mode_children: [u32; MAX_MODES],
+    /// Σ over children of |weighted − plain mean| of the `k` samples' end progress, the
+    /// weights being this expansion's accumulated scores: how far Ψ moves the estimate.
+    pub weight_shift_sum: f32,
+}
+
+impl ParticleDiagnostics {
+    /// Nothing counted yet.
+    pub const EMPTY: Self = Self {
+        children: 0,
+        ess_scores_sum: 0.0,
+        ess_scores_min: f32::INFINITY,
+        ess_psi_sum: 0.0,
+        ess_psi_min: f32::INFINITY,
+        distinct_sum: 0,
+        psi_histogram: [0; PSI_BINS],
+        psi_sum: 0.0,
+        psi_sq_sum: 0.0,
+        progress_spread_sum: [0.0; MAX_MODES],
+        mode_children: [0; MAX_MODES],
+        weight_shift_sum: 0.0,
+    };
+
+    /// Count one Ψ value (clamped to `[0, 1]`; a non-finite one is not counted).
+    pub(crate) fn count_psi(&mut self, psi: f32) {
+        if !psi.is_finite() {
+            return;
+        }
+        let p = psi.clamp(0.0, 1.0);
+        let bin = ((p * PSI_BINS as f32) as usize).min(PSI_BINS - 1);
+        self.psi_histogram[bin] += 1;
+        self.psi_sum += p;
+        self.psi_sq_sum += p * p;
+    }
+}
+
+impl Default for ParticleDiagnostics {
+    fn default() -> Self {
+        Self::EMPTY
+    }
+}
+
 /// The result of a planning call.
 #[derive(Debug, Clone, PartialEq)]
 pub struct SearchReport {
@@ -124,6 +203,8 @@ pub struct SearchReport {
     pub effective_particles: f32,
     /// Counters.
     pub stats: SearchStats,
+    /// What the particles and Ψ did over the call.
+    pub particle_diagnostics: ParticleDiagnostics,
 }
 
 impl SearchReport {
@@ -141,6 +222,7 @@ impl SearchReport {
             particles: 0,
             effective_particles: f32::NAN,
             stats: SearchStats::default(),
+            particle_diagnostics: ParticleDiagnostics::EMPTY,
         }
     }
 }
