@@ -41,17 +41,21 @@ work=$(mktemp -d)
 trap 'rm -rf "$work"' EXIT
 
 # Run before anything else on the page: every console error or warning, uncaught error and
-# rejected promise lands in <html data-check-errors>; the canvas's place in data-check-rect.
+# rejected promise lands in <html data-check-errors>; once the view is ready (three.js is
+# inflated first), the canvas's place in data-check-rect, and with #…&play, a click on play
+# and the state shown 3 s later in data-check-played.
 probe='<script>(function(){var errs=[];var root=document.documentElement;
 function note(m){errs.push(String(m));root.setAttribute("data-check-errors",JSON.stringify(errs));}
 ["error","warn"].forEach(function(k){var f=console[k];console[k]=function(){
 note("console."+k+": "+Array.prototype.map.call(arguments,String).join(" "));return f.apply(console,arguments);};});
 window.addEventListener("error",function(e){note("uncaught: "+e.message);});
 window.addEventListener("unhandledrejection",function(e){note("unhandled rejection: "+e.reason);});
-window.addEventListener("load",function(){setTimeout(function(){var c=document.querySelector("#dips-scene-view canvas");
-if(c){var r=c.getBoundingClientRect();root.setAttribute("data-check-rect",JSON.stringify([r.left,r.top,r.width,r.height,window.devicePixelRatio||1]));}},0);
-if(/play/.test(location.hash)){setTimeout(function(){document.getElementById("dips-scene-play").click();},100);
-setTimeout(function(){root.setAttribute("data-check-played",document.getElementById("dips-scene").getAttribute("data-frame"));},3100);}});
+window.addEventListener("load",function(){var t=setInterval(function(){var s=document.getElementById("dips-scene");
+if(!s||s.getAttribute("data-ready")!=="true")return;clearInterval(t);
+var c=document.querySelector("#dips-scene-view canvas");
+if(c){var r=c.getBoundingClientRect();root.setAttribute("data-check-rect",JSON.stringify([r.left,r.top,r.width,r.height,window.devicePixelRatio||1]));}
+if(/play/.test(location.hash)){document.getElementById("dips-scene-play").click();
+setTimeout(function(){root.setAttribute("data-check-played",s.getAttribute("data-frame"));},3000);}},50);});
 })();</script>'
 
 chrome() {

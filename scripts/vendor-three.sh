@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Rebuild host/report/vendor/three/: the parts of three.js that report.html's 3D view uses,
 # with OrbitControls, bundled and minified by esbuild into one classic script that defines
-# the global DIPS_THREE, plus three's licence. The versions are pinned here; the result is
+# the global DIPS_THREE, that script gzip-compressed, and three's licence. The versions are pinned here; the result is
 # committed, so building dips never needs npm or a network (dips-report embeds the file with
 # include_str!). Run from anywhere: scripts/vendor-three.sh
 set -euo pipefail
@@ -19,6 +19,11 @@ cp "$dest/entry.js" entry.js
     --target=es2020 --legal-comments=none --log-level=warning \
     --banner:js="/* three.js $THREE_VERSION (npm package three), Copyright 2010-2026 Three.js Authors, MIT licence (LICENSE beside this file); the exports of entry.js bundled by esbuild $ESBUILD_VERSION (scripts/vendor-three.sh) */" \
     --outfile="$dest/three-dips.min.js"
+# What report.html carries: the bundle gzip-compressed (a quarter of its size), which the
+# page inflates with the browser's DecompressionStream. -n: no name or time, same bytes on
+# every run.
+gzip -9nc "$dest/three-dips.min.js" >"$dest/three-dips.min.js.gz"
+gzip -dc "$dest/three-dips.min.js.gz" | cmp - "$dest/three-dips.min.js"
 cp node_modules/three/LICENSE "$dest/LICENSE"
 echo "$THREE_VERSION" >"$dest/VERSION"
 ls -l "$dest"

@@ -3,7 +3,8 @@
 //! contacts and forces, the goals, with a time slider and a play button. The positions are
 //! computed here (the page's script needs no kinematics) and embedded as JSON in a
 //! `<script type="application/json">`; the drawing is three.js, vendored at a pinned version
-//! (`host/report/vendor/three/`, `scripts/vendor-three.sh`) and inlined with the viewer
+//! (`host/report/vendor/three/`, `scripts/vendor-three.sh`) and inlined, gzip-compressed in
+//! base64 (the page inflates it with the browser's `DecompressionStream`), with the viewer
 //! (`scene3d.js`), so the page works offline from a `file://` URL.
 
 use dips_host::geometry::PartShape;
@@ -17,8 +18,13 @@ use crate::ReportError;
 use crate::recording::Recording;
 
 /// three.js (the parts the viewer uses, and OrbitControls), bundled as one classic script
-/// that defines the global `DIPS_THREE`.
+/// that defines the global `DIPS_THREE`; pages carry it as [`THREE_JS_GZ`].
 pub const THREE_JS: &str = include_str!("../vendor/three/three-dips.min.js");
+/// [`THREE_JS`] gzip-compressed (`gzip -9n`, by `scripts/vendor-three.sh`): what a page
+/// carries, in base64, a quarter of the size.
+pub const THREE_JS_GZ: &[u8] = include_bytes!("../vendor/three/three-dips.min.js.gz");
+/// The `id` of the `<script type="text/plain">` holding [`THREE_JS_GZ`] in base64.
+pub const THREE_ID: &str = "dips-three-gz";
 /// The version of three.js in [`THREE_JS`].
 pub const THREE_VERSION: &str = "0.187.0";
 /// three.js's licence (MIT), kept beside the vendored file.
@@ -318,6 +324,28 @@ pub fn scene_data(rec: &Recording) -> Result<SceneData, ReportError> {
     })
 }
 
+/// Standard base64 (RFC 4648, with padding): only `A–Z a–z 0–9 + / =`, safe in any element.
+pub fn base64(bytes: &[u8]) -> String {
+    const ABC: &[u8; 64] = b"ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
+    let mut out = String::with_capacity(bytes.len().div_ceil(3) * 4);
+    for chunk in bytes.chunks(3) {
+        let b = [
+            chunk[0],
+            *chunk.get(1).unwrap_or(&0),
+            *chunk.get(2).unwrap_or(&0),
+        ];
+        let n = (u32::from(b[0]) << 16) | (u32::from(b[1]) << 8) | u32::from(b[2]);
+        for i in 0..4 {
+            if i <= chunk.len() {
+                out.push(char::from(ABC[(n >> (18 - 6 * i)) as usize & 63]));
+            } else {
+                out.push('=');
+            }
+        }
+    }
+    out
+}
+
 /// JSON that is safe inside a `<script>` element: `<`, `>` and `&` are written as `\u` escapes
 /// (JSON strings allow them; the text can then never close the element).
 fn script_safe_json(data: &SceneData) -> String {
@@ -344,11 +372,12 @@ pub fn scene_html(data: &SceneData) -> String {
          <noscript><p class=\"note\">The 3D view needs JavaScript.</p></noscript>\n\
          </div>\n\
          <script type=\"application/json\" id=\"{DATA_ID}\">{json}</script>\n\
-         <script>\n{THREE_JS}\n</script>\n\
+         <script type=\"text/plain\" id=\"{THREE_ID}\">{three}</script>\n\
          <script>\n{VIEWER_JS}\n</script>\n",
         max = n.saturating_sub(1),
         label = crate::html::escape(data.frames.first().map_or("", |f| f.label.as_str())),
         json = script_safe_json(data),
+        three = base64(THREE_JS_GZ),
     )
 }
 
@@ -447,7 +476,7 @@ mod tests {
         crate::write_episode_report(&dir, &rec, false, &mut |_, _| {}).unwrap();
         let html = std::fs::read_to_string(dir.join(crate::REPORT_HTML)).unwrap();
         assert!(html.contains("<h2 id=\"scene3d\">3D view</h2>"));
-        assert!(html.contains(THREE_JS) && html.contains(VIEWER_JS));
+        assert!(html.contains(&base64(THREE_JS_GZ)) && html.contains(VIEWER_JS));
         let start = html.find(DATA_ID).unwrap() + DATA_ID.len() + 2;
         let end = start + html[start..].find("</script>").unwrap();
         let data: serde_json::Value = serde_json::from_str(&html[start..end]).unwrap();
@@ -481,6 +510,47 @@ mod tests {
         let _ = std::fs::remove_dir_all(&dir);
     }
 
+    /// CRC-32 (IEEE), as gzip's trailer holds it.
+    fn crc32(bytes: &[u8]) -> u32 {
+        let mut c = !0u32;
+        for &b in bytes {
+            c ^= u32::from(b);
+            for _ in 0..8 {
+                c = if c & 1 != 0 {
+                    (c >> 1) ^ 0xEDB8_8320
+                } else {
+                    c >> 1
+                };
+            }
+        }
+        !c
+    }
+
+    #[test]
+    fn the_compressed_library_is_the_vendored_one_and_base64_is_standard() {
+        // gzip: magic, deflate; the trailer's CRC-32 and size are those of THREE_JS.
+        let gz = THREE_JS_GZ;
+        assert_eq!(&gz[..3], &[0x1f, 0x8b, 8]);
+        let n = gz.len();
+        let crc = u32::from_le_bytes(gz[n - 8..n - 4].try_into().unwrap());
+        let size = u32::from_le_bytes(gz[n - 4..].try_into().unwrap());
+        assert_eq!(size as usize, THREE_JS.len());
+        assert_eq!(crc, crc32(THREE_JS.as_bytes()));
+        assert!(gz.len() * 3 < THREE_JS.len());
+        for (plain, coded) in [
+            ("", ""),
+            ("f", "Zg=="),
+            ("fo", "Zm8="),
+            ("foo", "Zm9v"),
+            ("foob", "Zm9vYg=="),
+            ("fooba", "Zm9vYmE="),
+            ("foobar", "Zm9vYmFy"),
+        ] {
+            assert_eq!(base64(plain.as_bytes()), coded);
+        }
+        assert_eq!(base64(&[0xfb, 0xff, 0xbf]), "+/+/");
+    }
+
     #[test]
     fn the_markup_holds_the_data_three_and_the_viewer_safely() {
         let world = World::new(SceneKind::Card);
@@ -490,7 +560,11 @@ mod tests {
         assert!(html.contains(&format!(
             "<script type=\"application/json\" id=\"{DATA_ID}\">"
         )));
-        assert!(html.contains(THREE_JS) && THREE_JS.contains("DIPS_THREE"));
+        assert!(html.contains(&format!(
+            "<script type=\"text/plain\" id=\"{THREE_ID}\">{}</script>",
+            base64(THREE_JS_GZ)
+        )));
+        assert!(THREE_JS.contains("DIPS_THREE"));
         assert!(THREE_JS.contains(THREE_VERSION) && THREE_LICENSE.contains("MIT"));
         assert!(html.contains(VIEWER_JS));
         assert!(html.contains("max=\"2\""));
