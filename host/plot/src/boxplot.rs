@@ -107,6 +107,12 @@ impl BoxPlot {
             return Err(PlotError::Empty("no boxes"));
         }
         let (lo, hi) = self.value_range()?;
+        // Room above the boxes for the reference's legend (upper right), so it covers no trial.
+        let hi = if self.reference.is_some() {
+            hi + 0.12 * (hi - lo)
+        } else {
+            hi
+        };
         root.fill(&WHITE).map_err(draw_err)?;
         let n = self.series.len();
         let labels: Vec<&str> = self.series.iter().map(|s| s.label.as_str()).collect();

@@ -145,6 +145,20 @@ impl Timeline {
                     0.0
                 },
         );
+        // Room above the data for the legend (upper right), so it never covers a line: one
+        // 16 px row per series drawn, out of the plot's height in pixels.
+        let entries = panel
+            .series
+            .iter()
+            .filter(|s| s.points.iter().any(|p| p.1.is_finite()))
+            .count();
+        let plot_px = (f64::from(self.panel_size.1) - 72.0).max(60.0);
+        let legend = if entries > 0 {
+            ((16.0 * entries as f64 + 10.0) / plot_px).min(0.6)
+        } else {
+            0.0
+        };
+        let hi = hi + (hi - lo) * legend / (1.0 - legend);
         let mut chart = ChartBuilder::on(area)
             .caption(&panel.title, ("sans-serif", 15))
             .margin(8)

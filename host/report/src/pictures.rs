@@ -214,7 +214,7 @@ pub fn timeline(rec: &Recording) -> Option<Timeline> {
     };
     // No finger lifted (no regrasp mode ran): a sentence instead of a dashed δ line alone on
     // an axis around it.
-    let any_lifted = sdf.iter().any(|s| !s.is_empty());
+    let any_lifted = sdf.iter().flatten().any(|p| p.1.is_finite());
     let mut sdf_series = per_finger(sdf);
     sdf_series.push(Series {
         label: "clearance δ".into(),
@@ -284,4 +284,44 @@ pub fn timeline(rec: &Recording) -> Option<Timeline> {
         phases,
         panel_size: (900, 230),
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn committed(path: &str) -> Recording {
+        let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../docs/results");
+        Recording::read(&root.join(path)).unwrap()
+    }
+
+    #[test]
+    fn no_lifted_finger_is_a_sentence_not_an_empty_axis() {
+        let lifted = |rec: &Recording| {
+            let t = timeline(rec).unwrap();
+            t.panels
+                .into_iter()
+                .find(|p| p.title.starts_with("lifted fingers"))
+                .unwrap()
+        };
+        // The policy's modes lift no finger.
+        let none = lifted(&committed(
+            "2026-11-26-card-v2/card/episodes/diffusion-policy/seed-3003/result.json",
+        ));
+        assert!(none.series.is_empty(), "{:?}", none.series);
+        assert!(
+            none.title.contains("none in this episode"),
+            "{}",
+            none.title
+        );
+        // `index` lifts the middle finger.
+        let some = lifted(&committed(
+            "2026-11-26-card-v2/card/episodes/dips/seed-3008/result.json",
+        ));
+        assert!(!some.series.is_empty());
+        assert_eq!(
+            some.title,
+            "lifted fingers: fingertip distance to the object"
+        );
+    }
 }
