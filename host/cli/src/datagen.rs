@@ -28,7 +28,12 @@ pub struct DatagenArgs {
     #[arg(long)]
     pub out: Option<PathBuf>,
     /// Seed of the first demo; demo i has seed FIRST_SEED + i.
-    #[arg(long, default_value_t = 0, allow_negative_numbers = true)]
+    #[arg(
+        long,
+        default_value_t = 0,
+        allow_negative_numbers = true,
+        value_parser = crate::search_args::parse_seed
+    )]
     pub first_seed: u64,
     /// This machine's part of the seeds, I/N (a job array's task index and count); `auto`
     /// takes it from a Slurm array (`SLURM_ARRAY_TASK_ID`, `SLURM_ARRAY_TASK_COUNT`), `auto/N`

@@ -93,6 +93,33 @@ fn flags_say_what_is_allowed() {
     let (code, err) = with(&["--seed", "-1"]);
     assert_eq!(code, Some(2), "{err}");
     assert!(err.contains("seeds are non-negative integers"), "{err}");
+    for args in [
+        vec![
+            "eval",
+            "--task",
+            "card",
+            "--first-seed",
+            "-1",
+            "--out",
+            &out,
+        ],
+        vec![
+            "datagen",
+            "--task",
+            "card",
+            "--first-seed",
+            "-1",
+            "--out",
+            &out,
+        ],
+    ] {
+        let (code, err) = dips(&args);
+        assert_eq!(code, Some(2), "{args:?}: {err}");
+        assert!(
+            err.contains("seeds are non-negative integers"),
+            "{args:?}: {err}"
+        );
+    }
     let (code, err) = with(&["--time-budget-s", "-1"]);
     assert_eq!(code, Some(2), "{err}");
     assert!(
