@@ -383,6 +383,7 @@ pub fn run_online<H: Hand + ?Sized>(
     progress: &mut dyn FnMut(&str),
 ) -> anyhow::Result<EpisodeResult> {
     let scene = hand.scene();
+    let hand_name = hand.name();
     let task = scene.task();
     let model = HandModel::allegro_v4();
     let limit = mode_limit(scene);
@@ -403,7 +404,7 @@ pub fn run_online<H: Hand + ?Sized>(
             );
         };
         let runs = settings.max_modes.map_or(limit, |m| m.min(limit));
-        return crate::policy::run_policy_episode(
+        let mut result = crate::policy::run_policy_episode(
             hand,
             policy,
             seed,
@@ -411,7 +412,9 @@ pub fn run_online<H: Hand + ?Sized>(
             &settings.sampler,
             runs,
             progress,
-        );
+        )?;
+        result.hand = hand_name;
+        return Ok(result);
     }
     let mut rng = KernelRng::seed_from_u64(seed);
     let mut sampler_rng = KernelRng::seed_from_u64(seed ^ 0xd1ff_0510);
@@ -538,6 +541,7 @@ pub fn run_online<H: Hand + ?Sized>(
         valid,
     );
     result.plans = plans;
+    result.hand = hand_name;
     Ok(result)
 }
 

@@ -431,6 +431,10 @@ impl MujocoHand {
 }
 
 impl Hand for MujocoHand {
+    fn name(&self) -> &'static str {
+        "mujoco"
+    }
+
     fn scene(&self) -> SceneKind {
         self.scene
     }

@@ -225,6 +225,10 @@ pub struct EpisodeResult {
     pub task: &'static str,
     /// Method name.
     pub method: String,
+    /// The hand that executed the episode ([`Hand::name`](crate::hand::Hand::name)):
+    /// `"world"` (our quasi-static world) or `"mujoco"` (`host/mujoco`). A `result.json`
+    /// written before the field existed ran on our world.
+    pub hand: &'static str,
     /// Seed.
     pub seed: u64,
     /// Executed modes, by name.
@@ -441,9 +445,11 @@ pub fn run_episode_observed<H: Hand + ?Sized>(
     }
     let planning_s = vec![0.0; modes.len()];
     let end = hand_state(hand);
-    Ok(EpisodeResult::assemble(
+    let mut result = EpisodeResult::assemble(
         task, method, seed, &start, &end, runs, planning_s, step_s, valid,
-    ))
+    );
+    result.hand = hand.name();
+    Ok(result)
 }
 
 impl EpisodeResult {
@@ -473,6 +479,8 @@ impl EpisodeResult {
         EpisodeResult {
             task: task.name(),
             method: method.to_string(),
+            // Our world unless the caller says otherwise (`run_online` records its hand's).
+            hand: "world",
             seed,
             modes: runs.iter().map(|r| r.mode).collect(),
             final_yaw,

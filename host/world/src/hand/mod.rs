@@ -26,6 +26,9 @@ pub struct ObjectPose {
 
 /// What a controller can read from and send to a hand.
 pub trait Hand {
+    /// Which hand this is, as `result.json`'s `hand` records it: `"world"` for our
+    /// quasi-static world, `"mujoco"` for the MuJoCo hand (`host/mujoco`).
+    fn name(&self) -> &'static str;
     /// The task scene.
     fn scene(&self) -> SceneKind;
     /// Measured joint positions of all sixteen joints.
@@ -92,6 +95,10 @@ pub enum HandError {
 }
 
 impl Hand for World {
+    fn name(&self) -> &'static str {
+        "world"
+    }
+
     fn scene(&self) -> SceneKind {
         World::scene(self)
     }
@@ -248,6 +255,10 @@ impl<H: Hand> Recorder<H> {
 }
 
 impl<H: Hand> Hand for Recorder<H> {
+    fn name(&self) -> &'static str {
+        self.inner.name()
+    }
+
     fn scene(&self) -> SceneKind {
         self.inner.scene()
     }
