@@ -225,7 +225,7 @@ pub struct EpisodeResult {
     pub task: &'static str,
     /// Method name.
     pub method: String,
-    /// The hand that executed the episode ([`Hand::name`](crate::hand::Hand::name)):
+    /// The hand that executed the episode ([`Hand::name`]):
     /// `"world"` (our quasi-static world) or `"mujoco"` (`host/mujoco`). A `result.json`
     /// written before the field existed ran on our world.
     pub hand: &'static str,
