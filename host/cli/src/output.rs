@@ -1,7 +1,7 @@
 //! Writing without panicking: `println!` and `eprintln!` panic when their stream is a closed
 //! pipe (`dips … 2>&1 | head -1`, quitting `less`) or a full disk. Results on stdout go through
-//! [`line`], which returns the error (the binary turns a closed pipe into a quiet exit); notes
-//! and progress on stderr go through [`note`], which drops them, so the work and its files
+//! [`line()`], which returns the error (the binary turns a closed pipe into a quiet exit); notes
+//! and progress on stderr go through [`note()`], which drops them, so the work and its files
 //! complete whatever became of the stream.
 
 use std::io::Write;
@@ -24,7 +24,7 @@ pub fn note(text: &str) {
         .and_then(|()| err.flush());
 }
 
-/// `eprintln!` that never panics: [`note`] of the `format!` arguments.
+/// `eprintln!` that never panics: [`note()`] of the `format!` arguments.
 #[macro_export]
 macro_rules! note {
     ($($arg:tt)*) => {

@@ -8,7 +8,7 @@
 //! - [`run`]: many demos on all cores, resumable, with progress ([`run::generate`]);
 //! - [`manifest`]: the dataset's `manifest.json`, rebuilt from the demo files
 //!   ([`manifest::index`]);
-//! - [`merge`]: the shards' outputs (one shared directory or N) as one dataset, every demo
+//! - [`merge`](mod@merge): the shards' outputs (one shared directory or N) as one dataset, every demo
 //!   accounted for ([`merge::merge`]).
 //!
 //! Shards (`--shard I/N`, `--shard auto`) and progress are `dips-batch`'s.

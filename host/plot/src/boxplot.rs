@@ -64,7 +64,7 @@ pub struct BoxSeries {
 }
 
 /// A box plot with each trial drawn as a dot over its box; a series with fewer than
-/// [`STRIP_BELOW`] values is drawn as a strip plot (the dots and a median tick only).
+/// five values (`STRIP_BELOW`) is drawn as a strip plot (the dots and a median tick only).
 #[derive(Debug, Clone, PartialEq)]
 pub struct BoxPlot {
     /// Title above the plot.
