@@ -4,7 +4,7 @@
 
 use std::path::Path;
 
-use dips_dataset::{DatasetError, demo_files, read_demo, write_atomic};
+use dips_dataset::{DatasetError, demo_files, read_demo};
 use dips_host::scenes::SceneKind;
 use serde::{Deserialize, Serialize};
 
@@ -120,6 +120,8 @@ pub fn index(dir: &Path, task: SceneKind) -> Result<Manifest, DatagenError> {
     };
     let path = dir.join("manifest.json");
     let text = serde_json::to_string_pretty(&manifest).unwrap_or_default();
-    write_atomic(&path, text.as_bytes()).map_err(|source| DatagenError::Io { path, source })?;
+    // Every shard of a shared directory rewrites it when it finishes: dips-batch's writer
+    // names its temporary file after the host too, so two shards never write one.
+    dips_batch::record::write_atomic(&path, text.as_bytes())?;
     Ok(manifest)
 }

@@ -295,8 +295,9 @@ pub fn claim_dir(dir: &Path, settings: &EvalSettings) -> anyhow::Result<EvalFile
         file.trials = file.trials.max(old.trials);
     }
     let text = serde_json::to_string_pretty(&file)?;
-    dips_host::atomic_write::write_atomic(&dir.join(EVAL_FILE), text.as_bytes())
-        .with_context(|| format!("writing {}", dir.join(EVAL_FILE).display()))?;
+    // Shards on several hosts may claim one directory at once: dips-batch's writer names its
+    // temporary file after the host too, so their writes never share one.
+    dips_batch::record::write_atomic(&dir.join(EVAL_FILE), text.as_bytes())?;
     Ok(file)
 }
 
