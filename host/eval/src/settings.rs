@@ -50,20 +50,15 @@ impl EpisodeSettings {
             serde_json::to_value(self).unwrap_or_default(),
             serde_json::to_value(other).unwrap_or_default(),
         );
-        let (Some(a), Some(b)) = (a.as_object(), b.as_object()) else {
+        if a == b {
             return ("settings".into(), String::new(), String::new());
-        };
-        for (k, va) in a {
-            let vb = b.get(k).cloned().unwrap_or_default();
-            if *va != vb {
-                return (
-                    format!("--{}", k.replace('_', "-")),
-                    va.to_string(),
-                    vb.to_string(),
-                );
-            }
         }
-        ("settings".into(), String::new(), String::new())
+        let (field, there, here) = dips_batch::first_difference(&a, &b, "");
+        (
+            format!("--{}", field.trim_start_matches('.').replace('_', "-")),
+            there,
+            here,
+        )
     }
 }
 
