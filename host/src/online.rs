@@ -30,7 +30,7 @@ use dips_kernel::session::PlanSpec;
 use crate::execute::episode::{CARD_MODES, SCREWDRIVER_MODES};
 use crate::execute::{
     EpisodeResult, ExecSettings, ParticleSummary, PlanRecord, hand_state, mode_goal, pose_valid,
-    prior_sequence_for_seed, run_mode,
+    prior_sequence_for_seed, run_mode, true_hand_state,
 };
 use crate::hand::Hand;
 use crate::kinematics::HandModel;
@@ -428,7 +428,8 @@ pub fn run_online<H: Hand + ?Sized>(
         None => MarkovPrior::paper(task, SearchConfig::for_task(task).p_min)
             .map_err(|e| anyhow!("{e}"))?,
     };
-    let start = hand_state(hand);
+    // Scored on the true pose (a simulated tracker may be noisy); planned on the measured.
+    let start = true_hand_state(hand);
     let mut valid = pose_valid(scene, &hand.object_pose());
     let mut runs = Vec::new();
     let mut executed: Vec<Mode> = Vec::new();
@@ -528,7 +529,7 @@ pub fn run_online<H: Hand + ?Sized>(
         runs.push(run);
         executed.push(mode);
     }
-    let end = hand_state(hand);
+    let end = true_hand_state(hand);
     let mut result = EpisodeResult::assemble(
         scene,
         method.name(),

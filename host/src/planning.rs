@@ -96,43 +96,8 @@ impl Clock for ProgressClock<'_> {
 /// steps) or `ddim:STEPS[:ETA]` (DDIM over STEPS ≥ 1 strided steps; η = 0, the default, is
 /// deterministic, η = 1 is ancestral).
 pub fn parse_sampler(spec: &str) -> anyhow::Result<SamplerConfig> {
-    use dips_kernel::diffusion::{DEFAULT_NOISE_FACTOR, SamplingMethod};
-    if spec == "ddpm" {
-        return Ok(SamplerConfig::default());
-    }
-    let bad = || {
-        anyhow::anyhow!(
-            "--sampler {spec:?}: expected `ddpm`, `ddpm:STEPS` or `ddim:STEPS[:ETA]` \
-             (1 ≤ STEPS ≤ 65535, 0 ≤ ETA ≤ 1)"
-        )
-    };
-    let parse_steps = |s: &str| s.parse::<u16>().ok().filter(|&n| n > 0).ok_or_else(bad);
-    if let Some(steps) = spec.strip_prefix("ddpm:") {
-        let steps = parse_steps(steps)?;
-        return Ok(SamplerConfig {
-            method: SamplingMethod::DdpmStrided {
-                steps,
-                noise_factor: DEFAULT_NOISE_FACTOR,
-            },
-            ..SamplerConfig::default()
-        });
-    }
-    let rest = spec.strip_prefix("ddim:").ok_or_else(bad)?;
-    let (steps, eta) = match rest.split_once(':') {
-        Some((s, e)) => (s, Some(e)),
-        None => (rest, None),
-    };
-    let steps = parse_steps(steps)?;
-    let mut config = SamplerConfig::ddim(steps);
-    if let Some(e) = eta {
-        let eta = e
-            .parse::<f32>()
-            .ok()
-            .filter(|v| (0.0..=1.0).contains(v))
-            .ok_or_else(bad)?;
-        config.method = SamplingMethod::Ddim { steps, eta };
-    }
-    Ok(config)
+    spec.parse::<SamplerConfig>()
+        .map_err(|e| anyhow::anyhow!("--sampler {spec:?}: {e}"))
 }
 
 /// The threads a model call uses when no `--threads` is given: every core this process may
@@ -260,12 +225,86 @@ pub struct Models {
     /// The Diffusion Policy baseline's denoiser (`dir/policy/denoiser.onnx`), when the
     /// directory has one (`crate::policy`).
     pub policy: Option<AnyEngine>,
+    /// The samplers Ψ's negatives came from, as the discriminator's metadata names them
+    /// (`dips.psi_negatives`: `ddpm:16+anchor` for the planner's anchored strided DDPM);
+    /// `None` for models that do not say (trained before it was recorded).
+    pub psi_negatives: Option<Vec<String>>,
+}
+
+/// The name of the samples the planner draws for `task` with `config`: the sampler's name,
+/// `+anchor` where the task's start anchor moves them (as `dips.psi_negatives` spells it).
+pub fn planner_sample_name(config: &SamplerConfig, task: Task) -> String {
+    let anchored =
+        dips_kernel::session::start_anchor(task) != dips_kernel::adapters::StartAnchor::NONE;
+    if anchored {
+        format!("{}+anchor", config.method)
+    } else {
+        config.method.to_string()
+    }
+}
+
+/// Why a Ψ whose negatives came from `negatives` (`dips.psi_negatives`) must not score the
+/// planner's samples of `config` for `task`, or `None` when they are among them.
+fn psi_mismatch(negatives: &[String], config: &SamplerConfig, task: Task) -> Option<String> {
+    let name = planner_sample_name(config, task);
+    if negatives.contains(&name) {
+        return None;
+    }
+    // The samplers among the negatives that the planner draws as they were drawn.
+    let usable: Vec<&str> = negatives
+        .iter()
+        .filter_map(|n| {
+            let base = n.strip_suffix("+anchor").unwrap_or(n);
+            (planner_sample_name(&base.parse().ok()?, task) == *n).then_some(base)
+        })
+        .collect();
+    let fix = match config.method {
+        dips_kernel::diffusion::SamplingMethod::DdpmStrided { steps, .. } => {
+            format!("retrain Ψ with discriminator.planner_fakes = [{steps}] (docs/training.md)")
+        }
+        _ => "retrain Ψ with discriminator.planner_fakes for a ddpm:S sampler".to_string(),
+    };
+    Some(if usable.is_empty() {
+        format!(
+            "Ψ was trained against samples of {} and never saw the planner's {name}; {fix}",
+            negatives.join(", ")
+        )
+    } else {
+        format!(
+            "Ψ was trained against samples of {} and never saw the planner's {name}; plan with \
+             --sampler {}, or {fix}",
+            negatives.join(", "),
+            usable.join(" or --sampler ")
+        )
+    })
 }
 
 impl Models {
-    /// Check that `config` can run on the denoiser: a strided sampler cannot take more steps
-    /// than the model was trained with. The error names the models and the allowed range.
-    pub fn check_sampler(&self, config: &SamplerConfig) -> anyhow::Result<()> {
+    /// Check that Ψ was trained against the samples the planner will score: when the
+    /// discriminator names the samplers of its negatives, the planner's (`config` with the
+    /// task's start anchor, [`planner_sample_name`]) must be one of them. A Ψ never shown the
+    /// planner's samples may call all of them fake, or all real; this is an error, not a
+    /// silent drift. Models that do not name theirs pass.
+    pub fn check_psi(&self, config: &SamplerConfig, task: Task) -> anyhow::Result<()> {
+        match self
+            .psi_negatives
+            .as_deref()
+            .and_then(|n| psi_mismatch(n, config, task))
+        {
+            Some(why) => bail!("the discriminator in {}: {why}", self.dir.display()),
+            None => Ok(()),
+        }
+    }
+
+    /// Check that `config` can run on the denoiser (a strided sampler cannot take more steps
+    /// than the model was trained with) and that Ψ was trained against its samples for
+    /// `task` ([`Self::check_psi`]). The error names the models and what is allowed.
+    pub fn check_sampler(&self, config: &SamplerConfig, task: Task) -> anyhow::Result<()> {
+        self.check_steps(config)?;
+        self.check_psi(config, task)
+    }
+
+    fn check_steps(&self, config: &SamplerConfig) -> anyhow::Result<()> {
         use dips_kernel::diffusion::SamplingMethod;
         let n = DenoiserEngine::dims(&self.denoiser).diffusion_steps;
         let (name, steps) = match config.method {
@@ -310,6 +349,12 @@ impl Models {
             denoiser: load_model(kind, dir, Role::Denoiser, task)?,
             discriminator: load_model(kind, dir, Role::Discriminator, task)?,
             prior,
+            psi_negatives: {
+                let file = dir.join(model_file(Role::Discriminator));
+                dips_onnx::contract::read_proto(&file)
+                    .and_then(|p| dips_onnx::contract::psi_negatives(&p))
+                    .with_context(|| format!("loading {}", file.display()))?
+            },
             dir: dir.to_path_buf(),
             policy: if dir
                 .join(crate::policy::POLICY_DIR)
@@ -482,5 +527,39 @@ impl<const K: usize, const N: usize, const O: usize, const S: usize> Session<K, 
             &mut self.work,
             clock,
         )
+    }
+}
+
+#[cfg(test)]
+mod psi_tests {
+    use super::*;
+
+    fn names(v: &[&str]) -> Vec<String> {
+        v.iter().map(|s| s.to_string()).collect()
+    }
+
+    #[test]
+    fn psi_must_have_seen_the_planners_samples() {
+        let ddpm16: SamplerConfig = "ddpm:16".parse().unwrap();
+        let trained = names(&["ddpm", "ddim:8", "ddpm:16+anchor"]);
+        // The screwdriver anchors its samples, the card does not.
+        assert_eq!(
+            planner_sample_name(&ddpm16, Task::Screwdriver),
+            "ddpm:16+anchor"
+        );
+        assert_eq!(planner_sample_name(&ddpm16, Task::Card), "ddpm:16");
+        assert_eq!(psi_mismatch(&trained, &ddpm16, Task::Screwdriver), None);
+        // The paper's negatives alone: the planner's anchored ddpm:16 was never shown.
+        let paper = names(&["ddpm", "ddim:8"]);
+        let e = psi_mismatch(&paper, &ddpm16, Task::Screwdriver).unwrap();
+        assert!(e.contains("never saw the planner's ddpm:16+anchor"), "{e}");
+        assert!(e.contains("planner_fakes = [16]"), "{e}");
+        // The card's planner draws ddim:8 as Ψ saw it, so that sampler is offered.
+        let e = psi_mismatch(&paper, &ddpm16, Task::Card).unwrap();
+        assert!(e.contains("--sampler ddpm or --sampler ddim:8"), "{e}");
+        assert_eq!(
+            psi_mismatch(&paper, &"ddim:8".parse().unwrap(), Task::Card),
+            None
+        );
     }
 }

@@ -22,7 +22,7 @@ use dips_onnx::{AnyEngine, EngineKind};
 
 use crate::execute::episode::{EpisodeResult, SCREWDRIVER_SUCCESS_YAW};
 use crate::execute::mode_run::command_deltas;
-use crate::execute::{ExecSettings, ModeRun, StepLog, hand_state, pose_valid};
+use crate::execute::{ExecSettings, ModeRun, StepLog, hand_state, pose_valid, true_hand_state};
 use crate::hand::Hand;
 use crate::planning::sample_trajectories;
 use crate::problems::contract::contract_state;
@@ -87,6 +87,8 @@ pub fn run_policy_episode<H: Hand + ?Sized>(
     let context = vec![0f32; dims.fingers];
     let mut rng = KernelRng::seed_from_u64(seed ^ 0xd1ff_0901);
     let start = hand_state(hand);
+    // Scored on the true pose (a simulated tracker may be noisy); run on the measured.
+    let start_truth = true_hand_state(hand);
     let mut valid = pose_valid(scene, &hand.object_pose());
     let mut mode_runs = Vec::with_capacity(runs);
     let mut step_s = Vec::new();
@@ -145,12 +147,12 @@ pub fn run_policy_episode<H: Hand + ?Sized>(
             regrasp_target_distance: Vec::new(),
         });
     }
-    let end = hand_state(hand);
+    let end = true_hand_state(hand);
     Ok(EpisodeResult::assemble(
         scene,
         "diffusion-policy",
         seed,
-        &start,
+        &start_truth,
         &end,
         mode_runs,
         Vec::new(),

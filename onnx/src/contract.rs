@@ -12,6 +12,29 @@ use crate::tasks::task_layout;
 /// The contract version this crate implements.
 pub const CONTRACT_VERSION: u32 = 1;
 
+/// Optional discriminator metadata: a JSON array naming the samplers Ψ's negatives came from,
+/// as `--sampler` spells them, `+anchor` where the samples were anchored at their starts as
+/// the planner anchors them (e.g. `["ddpm","ddim:8","ddpm:16+anchor"]`). Models written
+/// before it existed have none ([`psi_negatives`]).
+pub const PSI_NEGATIVES_KEY: &str = "dips.psi_negatives";
+
+/// The samplers a discriminator's negatives came from ([`PSI_NEGATIVES_KEY`]), `None` when the
+/// model does not say; an error when it says something that is not a JSON array of strings.
+pub fn psi_negatives(proto: &pb::ModelProto) -> Result<Option<Vec<String>>> {
+    let Some(v) = proto
+        .metadata_props
+        .iter()
+        .find(|p| p.key == PSI_NEGATIVES_KEY)
+    else {
+        return Ok(None);
+    };
+    serde_json::from_str(&v.value).map(Some).map_err(|e| {
+        contract_err(format!(
+            "{PSI_NEGATIVES_KEY} is not a JSON array of sampler names: {e}"
+        ))
+    })
+}
+
 /// What a model is for.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
 #[serde(rename_all = "lowercase")]

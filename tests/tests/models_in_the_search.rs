@@ -81,6 +81,7 @@ fn plan(kind: EngineKind, model_task: Task, task: Task) -> SearchReport {
         prior: None,
         dir: std::path::PathBuf::new(),
         policy: None,
+        psi_negatives: None,
     };
     let prior = MarkovPrior::uniform(task.mode_count()).unwrap();
     let goal = match task {

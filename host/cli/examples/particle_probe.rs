@@ -99,7 +99,7 @@ fn probe() -> anyhow::Result<()> {
         if !sessions.contains_key(&task_name) {
             let dir = models_dir(models_arg.as_deref(), task)?;
             let models = Models::load(dips_onnx::EngineKind::Kernel, &dir, task)?;
-            models.check_sampler(&parse_sampler("ddpm:16")?)?;
+            models.check_sampler(&parse_sampler("ddpm:16")?, task)?;
             let prior = match models.prior {
                 Some(p) => p,
                 None => MarkovPrior::paper(task, SearchConfig::for_task(task).p_min)

@@ -77,7 +77,7 @@ pub fn run(args: &PlanBenchArgs) -> anyhow::Result<()> {
     let mut models = Models::load(args.engine.into(), &dir, task)?;
     let threads = crate::model::threads(args.threads)?;
     models.set_threads(threads);
-    models.check_sampler(&sampler)?;
+    models.check_sampler(&sampler, task)?;
     let prior = models.prior;
     let mut session = PaperSession::new(models);
     let start: Vec<f32> = contract_state(&World::new(scene).state())

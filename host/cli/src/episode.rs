@@ -103,7 +103,7 @@ pub fn run(args: EpisodeArgs) -> anyhow::Result<()> {
         let dir = models_dir(args.models.as_deref(), task.task())?;
         let mut models = Models::load(args.engine.into(), &dir, task.task())?;
         models.set_threads(crate::model::threads(args.threads)?);
-        models.check_sampler(&sampler)?;
+        models.check_sampler(&sampler, task.task())?;
         Some(models)
     } else {
         None

@@ -152,7 +152,7 @@ pub fn run(args: PlanArgs) -> anyhow::Result<()> {
     let dir = models_dir(args.models.as_deref(), task)?;
     let mut models = Models::load(kind, &dir, task)?;
     models.set_threads(crate::model::threads(args.threads)?);
-    models.check_sampler(&sampler)?;
+    models.check_sampler(&sampler, task)?;
     let prior_source = match models.prior {
         Some(prior) => {
             spec.prior = prior;

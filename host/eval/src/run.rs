@@ -154,7 +154,7 @@ pub fn run_eval(settings: &EvalSettings, dir: &Path) -> anyhow::Result<EvalRepor
     if settings.methods.iter().any(|m| m.needs_models()) {
         Models::load(settings.engine, &settings.models, settings.task.task())
             .with_context(|| format!("loading the models in {}", settings.models.display()))?
-            .check_sampler(&settings.online.sampler)?;
+            .check_sampler(&settings.online.sampler, settings.task.task())?;
     }
     let episodes = settings.episodes();
     let mut pending: Vec<(Method, u64)> = episodes

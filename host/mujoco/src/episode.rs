@@ -78,7 +78,7 @@ pub fn run_episode(
         let mut m =
             Models::load(EngineKind::Kernel, &dir, spec.task.task()).map_err(episode_err)?;
         m.set_threads(spec.threads);
-        m.check_sampler(&spec.online.sampler).map_err(episode_err)?;
+        m.check_sampler(&spec.online.sampler, spec.task.task()).map_err(episode_err)?;
         Some(m)
     } else {
         None

@@ -39,6 +39,22 @@ fn raw_angle(scene: SceneKind, r: &UnitQuaternion<f64>) -> f64 {
     }
 }
 
+/// `pose` with task coordinates, its third coordinate unwrapped by continuity from `raw`
+/// (the previous raw angle) and `angle` (the previous unwrapped one), both updated.
+fn unwrapped(scene: SceneKind, pose: Isometry3<f64>, raw: &mut f64, angle: &mut f64) -> ObjectPose {
+    let r = raw_angle(scene, &pose.rotation);
+    *angle += wrap_angle(r - *raw);
+    *raw = r;
+    let coords = match scene {
+        SceneKind::Screwdriver => {
+            let e = screwdriver::euler_xyz(pose.rotation.to_rotation_matrix().matrix());
+            [e[0], e[1], *angle]
+        }
+        SceneKind::Card => [pose.translation.x, pose.translation.y, *angle],
+    };
+    ObjectPose { pose, coords }
+}
+
 /// A seeded Gaussian source (SplitMix64 + Box–Muller): the tracker's noise.
 #[derive(Debug, Clone)]
 struct Gaussian {
@@ -139,6 +155,12 @@ pub struct MujocoHand {
     raw: f64,
     /// The pose the tracker last reported.
     pose: ObjectPose,
+    /// The true pose at the last report, unwrapped by its own continuity.
+    truth: ObjectPose,
+    /// The unwrapped third coordinate of the true pose.
+    true_angle: f64,
+    /// The raw angle it was unwrapped from.
+    true_raw: f64,
     noise: Option<Gaussian>,
     xml: String,
 }
@@ -183,6 +205,12 @@ impl MujocoHand {
                 pose: Isometry3::identity(),
                 coords: [0.0; 3],
             },
+            truth: ObjectPose {
+                pose: Isometry3::identity(),
+                coords: [0.0; 3],
+            },
+            true_angle: 0.0,
+            true_raw: 0.0,
             noise,
             xml,
         };
@@ -223,7 +251,9 @@ impl MujocoHand {
         let rot = self.true_pose().rotation;
         self.raw = raw_angle(self.scene, &rot);
         self.angle = start.object().coords()[2];
-        self.pose = self.track();
+        self.true_raw = self.raw;
+        self.true_angle = self.angle;
+        self.observe();
     }
 
     /// Set the sixteen joint positions (velocities untouched; call `forward` to see them).
@@ -277,27 +307,20 @@ impl MujocoHand {
         self.data.forward();
     }
 
-    /// The pose a tracker reports now: the true pose, with the configured noise, and the
-    /// third coordinate unwrapped by continuity from the previous report.
-    fn track(&mut self) -> ObjectPose {
-        let mut pose = self.true_pose();
+    /// Read the pose as a tracker reports it now (the true pose with the configured noise)
+    /// and the true pose, each with its third coordinate unwrapped by continuity from its
+    /// previous reading.
+    fn observe(&mut self) {
+        let truth = self.true_pose();
+        let mut pose = truth;
         if let (Some(g), Some(n)) = (self.noise.as_mut(), self.params.pose_noise) {
             let dp = Vector3::new(g.normal(), g.normal(), g.normal()) * n.position;
             let dr = Vector3::new(g.normal(), g.normal(), g.normal()) * n.rotation;
             pose.translation.vector += dp;
             pose.rotation = UnitQuaternion::from_scaled_axis(dr) * pose.rotation;
         }
-        let raw = raw_angle(self.scene, &pose.rotation);
-        self.angle += wrap_angle(raw - self.raw);
-        self.raw = raw;
-        let coords = match self.scene {
-            SceneKind::Screwdriver => {
-                let e = screwdriver::euler_xyz(pose.rotation.to_rotation_matrix().matrix());
-                [e[0], e[1], self.angle]
-            }
-            SceneKind::Card => [pose.translation.x, pose.translation.y, self.angle],
-        };
-        ObjectPose { pose, coords }
+        self.truth = unwrapped(self.scene, truth, &mut self.true_raw, &mut self.true_angle);
+        self.pose = unwrapped(self.scene, pose, &mut self.raw, &mut self.angle);
     }
 
     /// The contacts MuJoCo found at the current state, in our report's form: `finger` is the
@@ -425,7 +448,7 @@ impl MujocoHand {
         self.reference = goal;
         // Positions after the last step: refresh the kinematics the tracker reads.
         self.data.forward();
-        self.pose = self.track();
+        self.observe();
         Ok(())
     }
 }
@@ -446,6 +469,10 @@ impl Hand for MujocoHand {
 
     fn object_pose(&self) -> ObjectPose {
         self.pose.clone()
+    }
+
+    fn true_object_pose(&self) -> ObjectPose {
+        self.truth.clone()
     }
 
     fn command(&mut self, targets: &HandJoints) -> Result<(), HandError> {

@@ -9,7 +9,7 @@ use dips_kernel::search::ParticleDiagnostics;
 use serde::Serialize;
 
 use super::mode_run::{
-    ExecError, ModeRun, StepParticles, hand_state, pose_valid, run_mode_observed,
+    ExecError, ModeRun, StepParticles, pose_valid, run_mode_observed, true_hand_state,
 };
 use super::settings::ExecSettings;
 use crate::hand::Hand;
@@ -423,7 +423,7 @@ pub fn run_episode_observed<H: Hand + ?Sized>(
     let task = hand.scene();
     let model = HandModel::allegro_v4();
     let mut rng = KernelRng::seed_from_u64(seed);
-    let start = hand_state(hand);
+    let start = true_hand_state(hand);
     let mut runs = Vec::with_capacity(modes.len());
     let mut valid = pose_valid(task, &hand.object_pose());
     let mut step_s = Vec::new();
@@ -444,7 +444,7 @@ pub fn run_episode_observed<H: Hand + ?Sized>(
         runs.push(run);
     }
     let planning_s = vec![0.0; modes.len()];
-    let end = hand_state(hand);
+    let end = true_hand_state(hand);
     let mut result = EpisodeResult::assemble(
         task, method, seed, &start, &end, runs, planning_s, step_s, valid,
     );

@@ -17,6 +17,6 @@ pub use episode::{
 };
 pub use mode_run::{
     ExecError, ModeRun, StepLog, StepParticles, hand_state, mode_goal, pose_valid, run_mode,
-    run_mode_observed,
+    run_mode_observed, true_hand_state,
 };
 pub use settings::ExecSettings;

@@ -157,6 +157,15 @@ pub fn hand_state<H: Hand + ?Sized>(hand: &H) -> Vec<f64> {
     s
 }
 
+/// [`hand_state`] with the object's true pose ([`Hand::true_object_pose`]): what an episode's
+/// outcome (final yaw, the card's distance to its goal) is scored on.
+pub fn true_hand_state<H: Hand + ?Sized>(hand: &H) -> Vec<f64> {
+    let mut s = hand_state(hand);
+    let n = s.len() - 3;
+    s[n..].copy_from_slice(&hand.true_object_pose().coords);
+    s
+}
+
 /// Task validity from an object pose: the screwdriver's cap within 2 cm of nominal, the card
 /// lying flat on the table (centre within 5 mm of its resting height).
 pub fn pose_valid(scene: SceneKind, pose: &ObjectPose) -> bool {

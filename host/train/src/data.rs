@@ -181,6 +181,16 @@ impl Normalizer {
             }
         }
     }
+
+    /// Undo [`Self::normalize`] on `[.., D]` rows in place.
+    pub fn denormalize(&self, x: &mut [f32]) {
+        let d = self.mean.len();
+        for row in x.chunks_exact_mut(d) {
+            for ((v, m), s) in row.iter_mut().zip(&self.mean).zip(&self.std) {
+                *v = *v * s + m;
+            }
+        }
+    }
 }
 
 /// Rotate the yaw's (cos, sin) columns of every row of one raw trajectory by `delta`.
@@ -221,6 +231,8 @@ pub mod purpose {
     pub const DISC_ORDER: u64 = 7;
     /// Discriminator input noise (diffusion step and noise per trajectory).
     pub const DISC_NOISE: u64 = 8;
+    /// Discriminator yaw augmentation (one angle per trajectory).
+    pub const DISC_AUGMENT: u64 = 9;
 }
 
 /// The permutation of `n` items for `epoch` (Fisher–Yates on its own stream).

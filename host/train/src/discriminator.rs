@@ -21,6 +21,7 @@ use std::time::Instant;
 use burn::tensor::Device;
 use burn::tensor::activation::{sigmoid, softplus};
 use dips_dataset::Dataset;
+use dips_kernel::adapters::StartAnchor;
 use dips_kernel::diffusion::schedule::fill_alpha_bar;
 use dips_kernel::diffusion::{
     SampleRequest, SamplerConfig, SamplerScratch, SamplingMethod, ScratchLayout, sample,
@@ -29,7 +30,7 @@ use dips_kernel::mode::{SegmentDims, Task};
 use safetensors::{Dtype, SafeTensors, tensor::TensorView};
 use serde::Serialize;
 
-use crate::data::{Normalizer, Samples, batch_indices, purpose, stream};
+use crate::data::{Normalizer, Samples, angle_columns, batch_indices, purpose, rotate_yaw, stream};
 use crate::denoiser::{
     TrainedDenoiser, checkpoint_dir, fingerprint, net_dims, resume, split_samples,
 };
@@ -86,6 +87,9 @@ pub struct TrainedDiscriminator {
     pub norm: Normalizer,
     /// Diffusion steps of the denoiser it was trained against (contract metadata).
     pub diffusion_steps: usize,
+    /// The samplers its negatives came from ([`negative_samplers`]), written to the model as
+    /// `dips.psi_negatives`.
+    pub negatives: Vec<String>,
     /// Figures.
     pub report: DiscriminatorReport,
 }
@@ -112,15 +116,21 @@ impl TrainedDiscriminator {
             self.task,
             self.diffusion_steps,
             &self.norm,
+            &self.negatives,
         )
     }
 }
 
 /// Sample one diffused trajectory per real one (same context, same start state), raw units.
+///
+/// `anchor` makes each trajectory continue from its start as the planner's sampler does
+/// (start angle clamped before sampling, [`StartAnchor::apply`] after);
+/// [`StartAnchor::NONE`] keeps the model's rows.
 pub fn diffuse_like(
     denoiser: &TrainedDenoiser,
     real: &Samples,
     config: &SamplerConfig,
+    anchor: StartAnchor,
     seed: u64,
     opts: &RunOptions,
     what: &str,
@@ -139,9 +149,14 @@ pub fn diffuse_like(
         let starts: Vec<f32> = (start..start + n)
             .flat_map(|i| real.x[i * td..i * td + sd].iter().copied())
             .collect();
+        let mut canonical = starts.clone();
+        if let Some(a) = anchor.clamp_angle(sd) {
+            a.clamp_starts(&mut canonical, sd);
+        }
+        let context = &real.context[start * f..(start + n) * f];
         let request = SampleRequest {
-            context: &real.context[start * f..(start + n) * f],
-            start_states: Some(&starts),
+            context,
+            start_states: Some(&canonical),
         };
         let mut scratch = SamplerScratch::split(&mut buf, &layout)
             .map_err(|e| TrainError::Sampler(e.to_string()))?;
@@ -155,6 +170,12 @@ pub fn diffuse_like(
             &mut out[start * td..(start + n) * td],
         )
         .map_err(|e| TrainError::Sampler(e.to_string()))?;
+        anchor.apply(
+            &mut out[start * td..(start + n) * td],
+            &starts,
+            context,
+            &dims,
+        );
         pb.inc(n as u64);
     }
     pb.finish_and_clear();
@@ -244,6 +265,67 @@ struct Pairs {
     sets: usize,
 }
 
+/// One source of Ψ's negatives: a sampler, how its samples continue from their starts, and
+/// the tag of its cache key and file.
+struct FakeSource {
+    tag: String,
+    config: SamplerConfig,
+    anchor: StartAnchor,
+}
+
+/// The sources of Ψ's negatives: the paper's DDPM, then each DDIM count, then each of the
+/// planner's strided DDPM counts with the task's start anchor.
+fn fake_sources(settings: &TrainSettings, task: Task) -> Vec<FakeSource> {
+    let s = &settings.discriminator;
+    let base = SamplerConfig {
+        guidance_weight: s.guidance_weight,
+        ..SamplerConfig::default()
+    };
+    let mut v: Vec<FakeSource> = fake_samplers(settings)
+        .into_iter()
+        .map(|(tag, config)| FakeSource {
+            tag,
+            config,
+            anchor: StartAnchor::NONE,
+        })
+        .collect();
+    for &steps in &s.planner_fakes {
+        v.push(FakeSource {
+            tag: format!("planner-ddpm{steps}"),
+            config: SamplerConfig {
+                method: SamplingMethod::DdpmStrided {
+                    steps: u16::try_from(steps).unwrap_or(u16::MAX),
+                    noise_factor: s.noise_factor,
+                },
+                ..base
+            },
+            anchor: dips_kernel::session::start_anchor(task),
+        });
+    }
+    v
+}
+
+/// The names of the samplers Ψ's negatives came from, as `--sampler` spells them, with
+/// `+anchor` where the samples were anchored at their starts as the planner anchors them:
+/// recorded in the discriminator's metadata (`dips.psi_negatives`).
+pub fn negative_samplers(settings: &TrainSettings, task: Task) -> Vec<String> {
+    fake_sources(settings, task)
+        .iter()
+        .map(|f| {
+            let name = match f.config.method {
+                SamplingMethod::Ddpm { .. } => "ddpm".to_string(),
+                SamplingMethod::DdpmStrided { steps, .. } => format!("ddpm:{steps}"),
+                SamplingMethod::Ddim { steps, .. } => format!("ddim:{steps}"),
+            };
+            if f.anchor == StartAnchor::NONE {
+                name
+            } else {
+                format!("{name}+anchor")
+            }
+        })
+        .collect()
+}
+
 /// The samplers whose trajectories are Ψ's negatives: the paper's DDPM, then each DDIM count,
 /// with the cache-key tag of each.
 fn fake_samplers(settings: &TrainSettings) -> Vec<(String, SamplerConfig)> {
@@ -286,7 +368,7 @@ fn pairs(
     what: &str,
 ) -> Result<(Pairs, f64)> {
     let s = &settings.discriminator;
-    let samplers = fake_samplers(settings);
+    let samplers = fake_sources(settings, denoiser.task);
     let den_fp = fingerprint(
         &denoiser
             .params
@@ -298,7 +380,12 @@ fn pairs(
     let real_fp = fingerprint(&[&real.x, &real.context]);
     let mut fake = Vec::with_capacity(real.x.len() * samplers.len());
     let mut seconds = 0.0;
-    for (tag, config) in &samplers {
+    for FakeSource {
+        tag,
+        config,
+        anchor,
+    } in &samplers
+    {
         // `v2`: the sampler zeroes the last row's action (older caches are stale). DDPM's key
         // and file keep their first form.
         let key = format!(
@@ -320,7 +407,7 @@ fn pairs(
                 } else {
                     format!("{what} ({tag})")
                 };
-                let v = diffuse_like(denoiser, &real, config, seed, opts, &label)?;
+                let v = diffuse_like(denoiser, &real, config, *anchor, seed, opts, &label)?;
                 let secs = t0.elapsed().as_secs_f64();
                 write_cache(&path, &key, &v, secs)?;
                 (v, secs)
@@ -412,6 +499,27 @@ fn accuracy(real: &[f32], fake: &[f32]) -> f32 {
     ok as f32 / (real.len() + fake.len()).max(1) as f32
 }
 
+/// The `(cos, sin)` columns that `discriminator.augment_yaw` turns for `task`, `None` when it
+/// is off; an error naming the setting when the task has no symmetry angle.
+pub fn augment_columns(task: Task, settings: &TrainSettings) -> Result<Option<(usize, usize)>> {
+    if !settings.discriminator.augment_yaw {
+        return Ok(None);
+    }
+    angle_columns(task)
+        .first()
+        .copied()
+        .filter(|_| dips_kernel::session::start_anchor(task).angle.is_some())
+        .map(Some)
+        .ok_or_else(|| TrainError::Settings {
+            field: "discriminator.augment_yaw".into(),
+            reason: format!(
+                "task {} has no symmetry angle to turn about; only the screwdriver's yaw is \
+                 one (set it to false)",
+                task.name()
+            ),
+        })
+}
+
 /// Train the discriminator against the diffused trajectories of `denoiser`.
 ///
 /// Checkpoints go to `out_dir/checkpoints/discriminator.safetensors` (resumed like the
@@ -428,6 +536,7 @@ pub fn train_discriminator(
     let task = ds.task;
     let dims = ds.dims();
     let s = &settings.discriminator;
+    let yaw = augment_columns(task, settings)?;
     let (train, held) = split_samples(ds, settings)?;
     let ckd = checkpoint_dir(out_dir)?;
     let (tp, mut sampling_s) = pairs(
@@ -521,6 +630,15 @@ pub fn train_discriminator(
                 c.extend_from_slice(&tp.context[i * f..(i + 1) * f]);
             }
         }
+        if let Some((cos_col, sin_col)) = yaw {
+            let mut rng = stream(settings.seed, purpose::DISC_AUGMENT, step as u64);
+            denoiser.norm.denormalize(&mut x);
+            for traj in x.chunks_exact_mut(td) {
+                let delta = (rng.uniform_f32() * 2.0 - 1.0) * std::f32::consts::PI;
+                rotate_yaw(traj, dims.dim(), cos_col, sin_col, delta);
+            }
+            denoiser.norm.normalize(&mut x);
+        }
         let w = if s.noised_inputs {
             let mut rng = stream(settings.seed, purpose::DISC_NOISE, step as u64);
             let w = forward_noise(&mut x, dims, &alpha_bar, &mut rng);
@@ -601,6 +719,7 @@ pub fn train_discriminator(
         params,
         norm: denoiser.norm.clone(),
         diffusion_steps: denoiser.diffusion_steps,
+        negatives: negative_samplers(settings, task),
         report,
     })
 }

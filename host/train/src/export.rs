@@ -74,13 +74,16 @@ pub fn denoiser_model(
     ))
 }
 
-/// The discriminator as a contract-v1 ONNX model (batch axis symbolic).
+/// The discriminator as a contract-v1 ONNX model (batch axis symbolic), with the samplers its
+/// negatives came from as `dips.psi_negatives` (a JSON array of `--sampler` names, `+anchor`
+/// where anchored as the planner anchors: [`dips_onnx::contract::PSI_NEGATIVES_KEY`]).
 pub fn discriminator_model(
     net: &Discriminator,
     params: &ParamStore,
     task: Task,
     diffusion_steps: usize,
     norm: &Normalizer,
+    negatives: &[String],
 ) -> Result<pb::ModelProto> {
     let dims = net.dims();
     let mut g = Graph::default();
@@ -93,7 +96,15 @@ pub fn discriminator_model(
             value_info("context", &[dims.fingers]),
         ],
         vec![value_info("p_real", &[1])],
-        contract_metadata(task, dips_onnx::Role::Discriminator, diffusion_steps, norm)?,
+        {
+            let mut meta =
+                contract_metadata(task, dips_onnx::Role::Discriminator, diffusion_steps, norm)?;
+            meta.push((
+                dips_onnx::contract::PSI_NEGATIVES_KEY.to_string(),
+                json(&negatives),
+            ));
+            meta
+        },
     ))
 }
 

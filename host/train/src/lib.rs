@@ -215,6 +215,7 @@ pub fn run(
     opts: &RunOptions,
 ) -> Result<TrainReport> {
     settings.validate()?;
+    discriminator::augment_columns(task, settings)?;
     let (ds, dropped) = read_dataset(task, data_dir, settings)?;
     std::fs::create_dir_all(out_dir).map_err(io_err(out_dir))?;
     let prior = match &settings.prior_sources {

@@ -158,6 +158,23 @@ pub struct DiscriminatorSettings {
     /// `√β_t` (the authors' code); `false`: clean inputs only. Row 0's state stays clean.
     #[serde(default = "default_true")]
     pub noised_inputs: bool,
+    /// Step counts `S` of the planner's strided DDPM (`--sampler ddpm:S`) whose samples join
+    /// the negatives *as the planner draws them*: the start's symmetry angle clamped into the
+    /// models' range and the task's start anchor applied afterwards
+    /// (`dips_kernel::session::start_anchor`). Empty (the default): Ψ never sees the planner's
+    /// own samples, only the paper's DDPM and `ddim_fakes`.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub planner_fakes: Vec<usize>,
+    /// Turn every training trajectory, real and diffused alike, about the task's symmetry angle
+    /// (the screwdriver's yaw) by a uniform random angle, so that Ψ cannot tell real from
+    /// diffused by the angle's level: the planner scores segments at yaws the demos never
+    /// reached. An error for a task without such an angle.
+    #[serde(default, skip_serializing_if = "is_false")]
+    pub augment_yaw: bool,
+}
+
+fn is_false(v: &bool) -> bool {
+    !*v
 }
 
 fn default_ddim_fakes() -> Vec<usize> {
@@ -180,6 +197,8 @@ impl Default for DiscriminatorSettings {
             noise_factor: dips_kernel::diffusion::DEFAULT_NOISE_FACTOR,
             ddim_fakes: default_ddim_fakes(),
             noised_inputs: true,
+            planner_fakes: Vec::new(),
+            augment_yaw: false,
         }
     }
 }
@@ -384,6 +403,19 @@ impl TrainSettings {
                 "discriminator.ddim_fakes",
                 format!(
                     "{k} DDIM steps: each entry must be in 1..={}",
+                    d.diffusion_steps
+                ),
+            ));
+        }
+        if let Some(&k) = s
+            .planner_fakes
+            .iter()
+            .find(|&&k| k == 0 || k > d.diffusion_steps.min(usize::from(u16::MAX)))
+        {
+            return Err(bad(
+                "discriminator.planner_fakes",
+                format!(
+                    "{k} DDPM steps: each entry must be in 1..={}",
                     d.diffusion_steps
                 ),
             ));

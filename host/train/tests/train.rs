@@ -360,3 +360,69 @@ fn run_writes_the_model_directory() {
     TractEngine::load(&out.join("denoiser.onnx"), &e).unwrap();
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+/// `planner_fakes` adds the planner's anchored strided-DDPM samples to Ψ's negatives and the
+/// model names every source in `dips.psi_negatives`; `augment_yaw` trains (screwdriver) or is
+/// refused with the field's name (card, which has no symmetry angle).
+#[test]
+fn psi_negatives_and_yaw_augmentation() {
+    let (dir, _) = dataset(Task::Screwdriver, "psi-negatives", 5);
+    let data = dir.join("data");
+    let mut s = tiny(Task::Screwdriver);
+    s.denoiser.steps = 10;
+    s.discriminator.steps = 5;
+    s.discriminator.planner_fakes = vec![4];
+    s.discriminator.augment_yaw = true;
+    let out = dir.join("models");
+    let r = dips_train::run(Task::Screwdriver, &data, &out, &s, &RunOptions::default()).unwrap();
+    assert_eq!(r.discriminator.steps, 5);
+    let proto = dips_onnx::contract::read_proto(&out.join("discriminator.onnx")).unwrap();
+    assert_eq!(
+        dips_onnx::contract::psi_negatives(&proto).unwrap(),
+        Some(vec![
+            "ddpm".to_string(),
+            "ddim:8".to_string(),
+            "ddpm:4+anchor".to_string()
+        ])
+    );
+    // The planner's fakes were sampled and cached beside the paper's.
+    assert!(
+        out.join("checkpoints/disc_fakes_train.planner-ddpm4.safetensors")
+            .is_file()
+    );
+    // Steps beyond the denoiser's are refused before anything runs.
+    let mut too_many = s.clone();
+    too_many.discriminator.planner_fakes = vec![17];
+    let e = dips_train::run(
+        Task::Screwdriver,
+        &data,
+        &dir.join("m2"),
+        &too_many,
+        &RunOptions::default(),
+    )
+    .unwrap_err();
+    assert!(
+        matches!(&e, TrainError::Settings { field, .. } if field == "discriminator.planner_fakes"),
+        "{e}"
+    );
+    std::fs::remove_dir_all(&dir).unwrap();
+
+    let (dir, _) = dataset(Task::Card, "psi-augment-card", 5);
+    let mut s = tiny(Task::Card);
+    s.denoiser.steps = 5;
+    s.discriminator.steps = 5;
+    s.discriminator.augment_yaw = true;
+    let e = dips_train::run(
+        Task::Card,
+        &dir.join("data"),
+        &dir.join("models"),
+        &s,
+        &RunOptions::default(),
+    )
+    .unwrap_err();
+    assert!(
+        matches!(&e, TrainError::Settings { field, .. } if field == "discriminator.augment_yaw"),
+        "{e}"
+    );
+    std::fs::remove_dir_all(&dir).unwrap();
+}

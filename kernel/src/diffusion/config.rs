@@ -78,3 +78,119 @@ impl SamplerConfig {
         }
     }
 }
+
+/// A sampler name that is not one of `ddpm`, `ddpm:STEPS`, `ddim:STEPS` or `ddim:STEPS:ETA`
+/// (`1 ≤ STEPS ≤ 65535`, `0 ≤ ETA ≤ 1`): [`SamplerConfig`]'s `FromStr`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct SamplerNameError;
+
+impl core::fmt::Display for SamplerNameError {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        f.write_str(
+            "expected `ddpm`, `ddpm:STEPS` or `ddim:STEPS[:ETA]` (1 ≤ STEPS ≤ 65535, 0 ≤ ETA ≤ 1)",
+        )
+    }
+}
+
+impl core::str::FromStr for SamplerConfig {
+    type Err = SamplerNameError;
+
+    /// The sampler a name stands for, with the default guidance weight, noise factor and
+    /// clip: `ddpm` (every training step, [`SamplingMethod::Ddpm`]), `ddpm:STEPS`
+    /// ([`SamplingMethod::DdpmStrided`]), `ddim:STEPS` (η = 0) or `ddim:STEPS:ETA`.
+    fn from_str(name: &str) -> Result<Self, Self::Err> {
+        if name == "ddpm" {
+            return Ok(Self::default());
+        }
+        let steps = |s: &str| {
+            s.parse::<u16>()
+                .ok()
+                .filter(|&n| n > 0)
+                .ok_or(SamplerNameError)
+        };
+        if let Some(s) = name.strip_prefix("ddpm:") {
+            return Ok(Self {
+                method: SamplingMethod::DdpmStrided {
+                    steps: steps(s)?,
+                    noise_factor: DEFAULT_NOISE_FACTOR,
+                },
+                ..Self::default()
+            });
+        }
+        let rest = name.strip_prefix("ddim:").ok_or(SamplerNameError)?;
+        let (s, eta) = match rest.split_once(':') {
+            Some((s, e)) => (
+                s,
+                e.parse::<f32>()
+                    .ok()
+                    .filter(|v| (0.0..=1.0).contains(v))
+                    .ok_or(SamplerNameError)?,
+            ),
+            None => (rest, 0.0),
+        };
+        Ok(Self {
+            method: SamplingMethod::Ddim {
+                steps: steps(s)?,
+                eta,
+            },
+            ..Self::default()
+        })
+    }
+}
+
+impl core::fmt::Display for SamplingMethod {
+    /// The method's name as [`SamplerConfig`]'s `FromStr` reads it (`ddpm`, `ddpm:16`,
+    /// `ddim:8`, `ddim:8:0.5`); the DDPM noise factor is not part of it.
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        match *self {
+            Self::Ddpm { .. } => f.write_str("ddpm"),
+            Self::DdpmStrided { steps, .. } => write!(f, "ddpm:{steps}"),
+            Self::Ddim { steps, eta } if eta == 0.0 => write!(f, "ddim:{steps}"),
+            Self::Ddim { steps, eta } => write!(f, "ddim:{steps}:{eta}"),
+        }
+    }
+}
+
+#[cfg(test)]
+mod name_tests {
+    use super::*;
+    use core::str::FromStr;
+
+    #[test]
+    fn names_round_trip() {
+        for name in ["ddpm", "ddpm:16", "ddim:8", "ddim:32:0.5", "ddim:1:1"] {
+            let c = SamplerConfig::from_str(name).unwrap();
+            let mut buf = heapless::String::<32>::new();
+            core::fmt::write(&mut buf, format_args!("{}", c.method)).unwrap();
+            assert_eq!(buf.as_str(), name);
+        }
+        assert_eq!(
+            SamplerConfig::from_str("ddpm").unwrap(),
+            SamplerConfig::default()
+        );
+        assert_eq!(
+            SamplerConfig::from_str("ddim:8").unwrap(),
+            SamplerConfig::ddim(8)
+        );
+    }
+
+    #[test]
+    fn bad_names_are_errors() {
+        for name in [
+            "",
+            "ddpm:0",
+            "ddim:",
+            "ddim:8:1.5",
+            "ddim:x",
+            "ddpm:70000",
+            "DDPM",
+            "ddim:8:",
+        ] {
+            assert_eq!(
+                SamplerConfig::from_str(name),
+                Err(SamplerNameError),
+                "{name}"
+            );
+        }
+    }
+}

@@ -14,7 +14,7 @@ pub mod scratch;
 
 pub use config::{
     DEFAULT_DENOISED_CLIP, DEFAULT_GUIDANCE_WEIGHT, DEFAULT_NOISE_FACTOR, SamplerConfig,
-    SamplingMethod,
+    SamplerNameError, SamplingMethod,
 };
 pub use error::{SampleError, SamplerError, ScratchBuffer};
 pub use normalize::{denormalize_in_place, normalize_in_place};

@@ -35,6 +35,12 @@ pub trait Hand {
     fn joint_positions(&self) -> HandJoints;
     /// Current estimate of the object pose.
     fn object_pose(&self) -> ObjectPose;
+    /// The object's true pose, where the hand knows it (a simulator with a noisy tracker):
+    /// what an episode's outcome is scored on. A real hand knows only its tracker's estimate,
+    /// the default.
+    fn true_object_pose(&self) -> ObjectPose {
+        self.object_pose()
+    }
     /// Send joint position targets and hold them for one action. A hand reports only
     /// whether it did; the new state is read back with [`Hand::joint_positions`] and
     /// [`Hand::object_pose`]. (The simulated world's solver details, [`StepReport`], come
