@@ -7,7 +7,7 @@ For every method and seed in both files it prints one line: the outcome in A and
 (screwdriver: final yaw in rad; card: distance to the goal in cm; `!` marks an invalid trial)
 and each run's executed mode sequence (`t` turn, `m` thumb-middle regrasp, `r` index regrasp;
 card modes by their initials); then per method the mean paired difference A − B and its
-standard error. The `paired-*-vs-*.txt` files of docs/results/ are its output.
+standard error. The `paired-*-vs-*.txt` files of the runs in docs/decisions.md are its output.
 """
 import statistics as st
 import sys

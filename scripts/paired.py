@@ -11,8 +11,7 @@ valid count, mean ± standard error and median of the outcome (screwdriver: fina
 card: distance to the goal in cm; lower is better for both; every trial, valid or not, as
 `results.md` counts it), then the per-seed paired difference `dips` − method (same seed,
 same start, same world): its mean, standard error, its share of the method's mean, and on
-how many seeds `dips` did better. The tables of docs/results/README.md ("Twenty more
-seeds", "Thirty more seeds") are its output.
+how many seeds `dips` did better. The `paired*.txt` files of docs/results/ are its output.
 """
 import json
 import math

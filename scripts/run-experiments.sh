@@ -1,10 +1,10 @@
 #!/usr/bin/env bash
 # The paper's experiments (issue "DIPS end to end", item 4): `dips eval` for both tasks, every
 # method, 10 trials each, with the shipped models, the default sampler (ddpm:16) and the
-# paper's 300 s planning budget per call. The defaults reproduce docs/results/2026-11-27
-# (screwdriver) and docs/results/2026-11-26/card (the card's results have not changed since, bit
-# for bit): seeds 3000–3009 (no model was trained on seeds >= 140; docs/results/README.md says
-# how these seeds were used), 35 minutes for the screwdriver on the 2-core machine of 2026-11-27.
+# paper's 300 s planning budget per call. The defaults reproduce docs/results/screwdriver and
+# docs/results/card (the card's results have not changed since 2026-11-26, bit for bit): seeds
+# 3000–3009 (no model was trained on seeds >= 140; docs/results/README.md says how these seeds
+# were used), 35 minutes for the screwdriver on the 2-core machine of 2026-11-27.
 #
 # Every episode's result.json stays under $WORK/<task>/episodes (not committed); the tables,
 # results.json, plots and report.html, with each method's median trial (its report, result.json
@@ -14,14 +14,14 @@
 # BUDGET (seconds per planning call, default 300), METHODS (default: all), TASKS (default:
 # card screwdriver), JOBS (episodes at once, default 1), SAMPLER (default: the CLI's,
 # ddpm:16), COST_TO_COME (cumulative or last-segment; default: the task's), RESULTS (where
-# the tables go, default docs/results/2026-11-27: RESULTS/<task>/).
+# the tables go, default docs/results: RESULTS/<task>/).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 WORK=${WORK:-target/eval-work}
 TRIALS=${TRIALS:-10}
 FIRST_SEED=${FIRST_SEED:-3000}
 BUDGET=${BUDGET:-300}
-RESULTS=${RESULTS:-docs/results/2026-11-27}
+RESULTS=${RESULTS:-docs/results}
 cargo build --release -p dips-cli
 DIPS=target/release/dips
 for task in ${TASKS:-card screwdriver}; do

@@ -9,7 +9,8 @@ Reads every episode's `result.json` under `EVAL_DIR/episodes/` of one or more sc
 grasp (`start`, `thumb-middle-regrasp` or `index-regrasp`) and by how many turns ran since it.
 Per group it prints the number of turns, the mean and median yaw change in the world (rad;
 negative is turning the right way) and how many of those turns left the object invalid
-(tipped). The table "What a turn yields" of docs/results/README.md is its output.
+(tipped). The table "What a turn yields" of the old results notebook
+(`git show 4a962a2:docs/results/README.md`) is its output.
 
 With `--probe` it reads instead what the `mode_probe` example printed for episodes
 (`cargo run --release -p dips-cli --example mode_probe -- RESULT.json ...`) and groups its

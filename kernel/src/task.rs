@@ -166,7 +166,8 @@ impl GoalScalar for f64 {
 /// min(y₀, o_G)), 0)`), card without `o0` (the card stays).
 ///
 /// **The push stops at the task goal** (our change; the paper's per-mode goal is a flat
-/// −2 cm): measured over the 60 card episodes of `docs/results/`, an executed push moves the
+/// −2 cm): measured over the 60 card episodes of the first evaluation (`docs/decisions.md`,
+/// "Card pushes never aim past the goal"), an executed push moves the
 /// card 1.7–1.9 cm, not 2, so three pushes end 3–8 mm short of `o_G`, the search's goal test
 /// (`ȳ ≤ o_G`) cannot stop there, and a full fourth push ended 0.7–1.6 cm past the goal in
 /// 10 of 10 `dips` trials. A push toward `o_G` when less than 2 cm remain is what a

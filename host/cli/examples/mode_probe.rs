@@ -1,5 +1,5 @@
 //! What the models predict from given start states, beside what the world and the training
-//! data did there (the screwdriver diagnosis in `docs/results/README.md`).
+//! data did there (the screwdriver diagnoses in `docs/decisions.md`).
 //!
 //! Two sources of start states:
 //!

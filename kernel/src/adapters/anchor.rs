@@ -1,7 +1,7 @@
 //! [`StartAnchor`]: how a sampled segment is made to continue from its start state.
 //!
 //! The diffusion sampler inpaints the start into row 0, but the models do not take everything
-//! from it: measured on the screwdriver (`docs/results/README.md`, "Anchored at the start"),
+//! from it: measured on the screwdriver (`docs/decisions.md`, "Start anchor"),
 //! row 1, the first row a model draws, puts the yaw up to 0.36 rad and the joints of the
 //! fingers in contact up to 0.7 rad away from the start's, for every mode, and from row 1 on
 //! the segment is right in kind. Read as sampled, that jump counts as progress the hand would
