@@ -69,8 +69,8 @@ chrome() {
 }
 
 status=0
-for case in "screwdriver docs/results/2026-11-27/screwdriver/episodes/dips/seed-3005 20" \
-    "card docs/results/2026-11-26/card/episodes/dips/seed-3008 20"; do
+for case in "screwdriver docs/results/screwdriver/episodes/dips/seed-3005 20" \
+    "card docs/results/card/episodes/dips/seed-3008 20"; do
     read -r task src shot <<<"$case"
     dir="$work/$task"
     mkdir -p "$dir"

@@ -290,9 +290,10 @@ pub fn timeline(rec: &Recording) -> Option<Timeline> {
 mod tests {
     use super::*;
 
-    fn committed(path: &str) -> Recording {
-        let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../docs/results");
-        Recording::read(&root.join(path)).unwrap()
+    /// A committed episode of the card's second model version (`tests/fixtures/`).
+    fn committed(name: &str) -> Recording {
+        let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures");
+        Recording::read(&root.join(name)).unwrap()
     }
 
     #[test]
@@ -305,9 +306,7 @@ mod tests {
                 .unwrap()
         };
         // The policy's modes lift no finger.
-        let none = lifted(&committed(
-            "2026-11-26-card-v2/card/episodes/diffusion-policy/seed-3003/result.json",
-        ));
+        let none = lifted(&committed("card-v2-diffusion-policy-seed-3003.json"));
         assert!(none.series.is_empty(), "{:?}", none.series);
         assert!(
             none.title.contains("none in this episode"),
@@ -315,9 +314,7 @@ mod tests {
             none.title
         );
         // `index` lifts the middle finger.
-        let some = lifted(&committed(
-            "2026-11-26-card-v2/card/episodes/dips/seed-3008/result.json",
-        ));
+        let some = lifted(&committed("card-v2-dips-seed-3008.json"));
         assert!(!some.series.is_empty());
         assert_eq!(
             some.title,

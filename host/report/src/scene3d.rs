@@ -468,7 +468,7 @@ mod tests {
     #[test]
     fn a_published_episode_report_has_the_3d_view_of_every_state() {
         let src = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
-            .join("../../docs/results/2026-11-26/card/episodes/dips/seed-3008/result.json");
+            .join("../../docs/results/card/episodes/dips/seed-3008/result.json");
         let dir = std::env::temp_dir().join(format!("dips-report-3d-{}", std::process::id()));
         std::fs::create_dir_all(&dir).unwrap();
         std::fs::copy(&src, dir.join("result.json")).unwrap();
