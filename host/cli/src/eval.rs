@@ -8,6 +8,7 @@ use clap::{Args, Subcommand};
 use dips_link::KernelTarget;
 
 use dips_batch::ShardSpec;
+use dips_eval::protocol::{Protocol, ProtocolFile, RegistrationStatus};
 use dips_eval::{EvalSettings, run_eval, summarize};
 use dips_host::online::{Method, OnlineSettings};
 use dips_host::planning::models_dir;
@@ -22,31 +23,49 @@ pub struct EvalArgs {
     /// `merge`: the outputs of a job array's shards as one evaluation.
     #[command(subcommand)]
     pub command: Option<EvalCommand>,
-    /// Task: `screwdriver` or `card`.
-    #[arg(long, required_unless_present = "summarize_only")]
+    /// Task: `screwdriver` or `card` (with `--protocol`, default: the protocol's).
+    #[arg(long, required_unless_present_any = ["summarize_only", "protocol"])]
     pub task: Option<String>,
-    /// Comma-separated methods (default: every method, in the paper's order): dips,
-    /// dips-sampled, csvto-sampled, dips-no-replan, dips-k1, dips-max-likelihood,
-    /// diffusion-policy.
+    /// Comma-separated methods (default: the protocol's, else every method, in the paper's
+    /// order): dips, dips-sampled, csvto-sampled, dips-no-replan, dips-k1,
+    /// dips-max-likelihood, diffusion-policy.
     #[arg(long, value_delimiter = ',')]
     pub methods: Option<Vec<String>>,
-    /// Trials per method (default 10); trial `i` has seed `--first-seed + i` for every
-    /// method. With `--summarize-only`, the trials expected in `--out`.
+    /// Trials per method (default: the protocol's, else 10); trial `i` has seed
+    /// `--first-seed + i` for every method. With `--summarize-only`, the trials expected in
+    /// `--out`.
     #[arg(long, value_parser = crate::search_args::parse_positive)]
     pub trials: Option<usize>,
-    /// Seed of trial 0. The default, 1000, is above every seed the shipped models were trained
-    /// on (demos below 140). Seeds 1000–1009 were also looked at in diagnoses
-    /// (`docs/results/README.md`); fresh seeds give an untouched evaluation.
+    /// Seed of trial 0 (default: the protocol's, else 1000, above every seed the shipped
+    /// models were trained on: demos below 140). Seeds below 1000 are for tuning, and every
+    /// evaluation takes a fresh registered range (`docs/results/PROTOCOL.md`).
     #[arg(
         long,
-        default_value_t = 1000,
         allow_negative_numbers = true,
         value_parser = crate::search_args::parse_seed
     )]
-    pub first_seed: u64,
+    pub first_seed: Option<u64>,
     /// Output directory (resumed when it holds an evaluation of the same settings).
-    #[arg(long, required = true)]
+    #[arg(long, required_unless_present = "write_protocol")]
     pub out: Option<PathBuf>,
+    /// Run under the protocol FILE (`docs/results/PROTOCOL.md`): refused unless FILE is
+    /// committed and this run's task, methods, seeds, settings and model hashes are its
+    /// (flags not given are taken from it: task, methods, trials, first seed); the results
+    /// get a `registration` block (registered, rerun, tuning or unregistered).
+    #[arg(long, value_name = "FILE", conflicts_with_all = ["summarize_only", "write_protocol"])]
+    pub protocol: Option<PathBuf>,
+    /// With `--protocol`: run even when FILE is not committed as it is; the results are
+    /// labelled unregistered (tests and tuning only).
+    #[arg(long, requires = "protocol")]
+    pub protocol_uncommitted: bool,
+    /// Write the protocol of these flags (settings resolved, models hashed) to FILE and run
+    /// nothing; needs `--task` and `--first-seed`. Commit FILE, then run with `--protocol FILE`.
+    #[arg(long, value_name = "FILE", conflicts_with = "summarize_only")]
+    pub write_protocol: Option<PathBuf>,
+    /// The name of the protocol `--write-protocol` writes (default: FILE's name without
+    /// `.json`).
+    #[arg(long, requires = "write_protocol")]
+    pub protocol_name: Option<String>,
     /// Episodes run at once (default: the number of cores).
     #[arg(long)]
     pub jobs: Option<usize>,
@@ -178,14 +197,14 @@ pub fn run(args: EvalArgs) -> anyhow::Result<()> {
     if let Some(command) = &args.command {
         return merge(command);
     }
-    let out = args.out.clone().context("--out DIR is required")?;
-    let report_args = ReportArgs {
-        out: &out,
-        animate: &args.animate,
-        episode_reports: &args.episode_reports,
-        quiet: args.quiet,
-    };
     if args.summarize_only {
+        let out = args.out.clone().context("--out DIR is required")?;
+        let report_args = ReportArgs {
+            out: &out,
+            animate: &args.animate,
+            episode_reports: &args.episode_reports,
+            quiet: args.quiet,
+        };
         let s = summarize(&out)?;
         for line in dips_eval::summary::shortfall(&s, args.trials) {
             crate::output::note(&line);
@@ -194,16 +213,37 @@ pub fn run(args: EvalArgs) -> anyhow::Result<()> {
         crate::output::line(dips_eval::summary::markdown(&s).trim_end_matches('\n'))?;
         return Ok(());
     }
-    let task_name = args.task.as_deref().context("--task is required")?;
+    let protocol = args
+        .protocol
+        .as_deref()
+        .map(ProtocolFile::read)
+        .transpose()?;
+    let given = protocol.as_ref().map(|p| &p.protocol.eval);
+    let task_name = args
+        .task
+        .as_deref()
+        .or(given.map(|e| e.episode.task.as_str()))
+        .context("--task is required")?;
     let task = SceneKind::from_name(task_name)
         .with_context(|| format!("unknown task `{task_name}` (expected screwdriver or card)"))?;
-    let methods = match &args.methods {
-        Some(names) => names
+    let methods = match (&args.methods, given) {
+        (Some(names), _) => names
             .iter()
             .map(|n| Method::from_name(n.trim()))
             .collect::<anyhow::Result<Vec<_>>>()?,
-        None => Method::ALL.to_vec(),
+        (None, Some(e)) => e
+            .methods
+            .iter()
+            .map(|n| Method::from_name(n))
+            .collect::<anyhow::Result<Vec<_>>>()?,
+        (None, None) => Method::ALL.to_vec(),
     };
+    if args.write_protocol.is_some() && args.first_seed.is_none() {
+        anyhow::bail!(
+            "--write-protocol needs --first-seed: a protocol names its seed range (the next \
+             free one is in docs/results/PROTOCOL.md)"
+        );
+    }
     if let Some(list) = &args.animate {
         // Checked before the episodes run, not after.
         let names: Vec<&str> = methods.iter().map(|m| m.name()).collect();
@@ -224,11 +264,14 @@ pub fn run(args: EvalArgs) -> anyhow::Result<()> {
         Some(n) => n,
         None => (cores / jobs.max(1)).max(1),
     };
-    let settings = EvalSettings {
+    let mut settings = EvalSettings {
         task,
         methods,
-        trials: args.trials.unwrap_or(10),
-        first_seed: args.first_seed,
+        trials: args.trials.or(given.map(|e| e.trials)).unwrap_or(10),
+        first_seed: args
+            .first_seed
+            .or(given.map(|e| e.first_seed))
+            .unwrap_or(1000),
         shard: crate::batch::resolve_shard(args.shard)?,
         jobs,
         model_threads,
@@ -247,6 +290,36 @@ pub fn run(args: EvalArgs) -> anyhow::Result<()> {
         progress: crate::batch::progress_mode(args.quiet),
         stop_after: None,
         kernel: args.kernel.clone(),
+        registration: None,
+    };
+    if let Some(file) = &args.write_protocol {
+        return write_protocol(file, args.protocol_name.as_deref(), &settings);
+    }
+    if let Some(p) = &protocol {
+        let registration = p.register(&settings, args.protocol_uncommitted)?;
+        crate::note!(
+            "protocol {} ({}): this run is labelled {}{}",
+            p.protocol.name,
+            p.path.display(),
+            registration.status.name(),
+            match registration.status {
+                RegistrationStatus::Registered => String::new(),
+                RegistrationStatus::Rerun => format!(
+                    " (the range is spent: {}); it never replaces the registered result",
+                    registration.spent_by.join(", ")
+                ),
+                RegistrationStatus::Tuning => " (seeds below 1000)".into(),
+                RegistrationStatus::Unregistered => " (the protocol is not committed)".into(),
+            }
+        );
+        settings.registration = Some(registration);
+    }
+    let out = args.out.clone().context("--out DIR is required")?;
+    let report_args = ReportArgs {
+        out: &out,
+        animate: &args.animate,
+        episode_reports: &args.episode_reports,
+        quiet: args.quiet,
     };
     let report = run_eval(&settings, &out)?;
     let episodes = |n: usize| if n == 1 { "episode" } else { "episodes" };
@@ -266,6 +339,36 @@ pub fn run(args: EvalArgs) -> anyhow::Result<()> {
         "wrote {} and {}",
         out.join("results.json").display(),
         out.join(dips_report::REPORT_HTML).display()
+    );
+    Ok(())
+}
+
+/// `--write-protocol FILE`: the protocol of `settings`, written and named; nothing runs.
+fn write_protocol(
+    file: &std::path::Path,
+    name: Option<&str>,
+    settings: &EvalSettings,
+) -> anyhow::Result<()> {
+    let stem = file
+        .file_stem()
+        .map(|s| s.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    settings.validate()?;
+    let protocol = Protocol::new(name.unwrap_or(&stem), settings)?;
+    protocol.write(file)?;
+    if protocol.tuning() {
+        crate::note!(
+            "seeds {}…: below 1000, so runs of this protocol are tuning, never registered",
+            settings.first_seed
+        );
+    }
+    crate::note!(
+        "wrote the protocol {} to {} ({} model files hashed); commit it, then run \
+         `dips eval --protocol {} --out DIR`",
+        protocol.name,
+        file.display(),
+        protocol.models.len(),
+        file.display()
     );
     Ok(())
 }

@@ -43,7 +43,7 @@ pub enum Command {
     Episode(episode::EpisodeArgs),
     /// The paper's experiments: many episodes per method (resumable, sharded), then
     /// results.json, results.md and box plots.
-    Eval(eval::EvalArgs),
+    Eval(Box<eval::EvalArgs>),
     /// Pictures of an episode (`result.json`) or a `dips sim run` trajectory: a GIF
     /// animation, or one state as SVG/PNG.
     Render(render::RenderArgs),
@@ -63,7 +63,7 @@ pub fn main() -> anyhow::Result<()> {
         Command::Bench(args) => bench::run(args),
         Command::Sim(args) => sim::main(args),
         Command::Episode(args) => episode::run(args),
-        Command::Eval(args) => eval::run(args),
+        Command::Eval(args) => eval::run(*args),
         Command::Plan(args) => plan::run(args),
         Command::Render(args) => render::run(args),
         Command::Datagen(args) => datagen::run(args),

@@ -7,6 +7,9 @@
 //!   skipped; a kill loses only the episodes in flight), with a progress bar and ETA.
 //! - [`merge`]: the shards' outputs (one shared directory or N) as one evaluation, every
 //!   episode accounted for (`dips eval merge`).
+//! - [`protocol`]: pre-registration (`dips eval --protocol FILE`): a committed protocol file
+//!   names the settings, seeds and model hashes; a run that differs is refused, and its
+//!   results are labelled registered, rerun, tuning or unregistered (`registration.json`).
 //! - [`summary`]: `results.json`, the Markdown table and the box plots from whatever episodes
 //!   are in the directory (all shards).
 //! - [`report`]: `report.html` (summary, box plots, one section per method with its median
@@ -16,6 +19,7 @@
 //!
 //! ```text
 //! DIR/eval.json                              the settings (checked on resume)
+//! DIR/registration.json                      the registration under a protocol, if any
 //! DIR/episodes/<method>/seed-<seed>/result.json   one episode (dips episode's format)
 //! DIR/episodes/<method>/seed-<seed>/log.txt       its progress lines
 //! DIR/episodes/<method>/seed-<seed>/wall.json     its wall time
@@ -27,6 +31,7 @@
 //! ```
 
 pub mod merge;
+pub mod protocol;
 pub mod report;
 pub mod run;
 pub mod settings;

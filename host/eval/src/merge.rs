@@ -1,7 +1,8 @@
 //! `dips eval merge`: the episodes of N shards — written to one shared directory or to N
 //! directories — become one evaluation. The settings of every source must agree, and every
 //! episode of the evaluation must be there: a missing one is named with its shard, never
-//! silently dropped.
+//! silently dropped. Every part must be of one registration (`registration.json`: the same
+//! protocol file and status, or none), which the merged directory keeps.
 
 use std::path::{Path, PathBuf};
 
@@ -10,6 +11,7 @@ use dips_batch::record::{SHARDS_DIR, record_path, write_atomic};
 use dips_batch::{Shard, ShardRecord, first_difference, read_records, shards_without_record};
 use serde::Serialize;
 
+use crate::protocol::{Registration, read_registration, write_registration};
 use crate::run::{WALL_FILE, finished};
 use crate::settings::{EVAL_FILE, EvalFile, episode_dir, read_eval_file};
 
@@ -81,6 +83,12 @@ fn copy_episode(from: &Path, to: &Path) -> anyhow::Result<()> {
 /// an episode of the evaluation is in no source (unless `allow_missing`: then it is listed).
 pub fn merge(out: &Path, sources: &[PathBuf], allow_missing: bool) -> anyhow::Result<MergeReport> {
     let mut file = read_eval_file(out)?;
+    // The registration every part must share (`None` inside: run without a protocol); unknown
+    // until a directory with an evaluation is seen.
+    let mut registration: Option<(Option<Registration>, PathBuf)> = file
+        .as_ref()
+        .map(|_| read_registration(out).map(|r| (r, out.to_path_buf())))
+        .transpose()?;
     let mut records: Vec<ShardRecord> = read_records(out)?;
     let (mut copied, mut already_there) = (0, 0);
     for src in sources {
@@ -99,6 +107,28 @@ pub fn merge(out: &Path, sources: &[PathBuf], allow_missing: bool) -> anyhow::Re
         match &mut file {
             None => file = Some(theirs.clone()),
             Some(ours) => agree(ours, &theirs, &src.join(EVAL_FILE))?,
+        }
+        let their_registration = read_registration(src)?;
+        match &registration {
+            None => registration = Some((their_registration, src.clone())),
+            Some((ours, from)) => {
+                let key = |r: &Option<Registration>| {
+                    r.as_ref().map(|r| (r.protocol_sha256.clone(), r.status))
+                };
+                if key(ours) != key(&their_registration) {
+                    let name = |r: &Option<Registration>| match r {
+                        Some(r) => format!("{} under protocol {}", r.status.name(), r.name),
+                        None => "run without a protocol".to_string(),
+                    };
+                    bail!(
+                        "{} was {}, {} {}; merge only shards of one registration",
+                        src.display(),
+                        name(&their_registration),
+                        from.display(),
+                        name(ours)
+                    );
+                }
+            }
         }
         for r in read_records(src)? {
             if !records.contains(&r) {
@@ -136,6 +166,11 @@ pub fn merge(out: &Path, sources: &[PathBuf], allow_missing: bool) -> anyhow::Re
         )
     })?;
     std::fs::create_dir_all(out).with_context(|| format!("creating {}", out.display()))?;
+    if let Some((Some(r), _)) = &registration
+        && read_registration(out)?.is_none()
+    {
+        write_registration(out, r)?;
+    }
     write_atomic(
         &out.join(EVAL_FILE),
         serde_json::to_string_pretty(&file)?.as_bytes(),

@@ -108,6 +108,10 @@ pub struct EvalSettings {
     /// Where the planning calls are made (`--kernel`); the results are the same bit for bit,
     /// so it is not part of [`EpisodeSettings`].
     pub kernel: KernelTarget,
+    /// The run's registration under a protocol (`dips eval --protocol`,
+    /// [`crate::protocol::ProtocolFile::register`]), written to `registration.json` when the
+    /// directory is claimed; `None` for a run without a protocol.
+    pub registration: Option<crate::protocol::Registration>,
 }
 
 impl EvalSettings {
@@ -165,6 +169,16 @@ impl EvalSettings {
             .map(|(m, i)| (m, self.seed(i)))
             .collect();
         self.shard.take(&all)
+    }
+
+    /// This run's `eval.json`: its episode settings, methods and seeds.
+    pub fn eval_file(&self) -> EvalFile {
+        EvalFile {
+            episode: self.episode_settings(),
+            methods: self.methods.iter().map(|m| m.name().to_string()).collect(),
+            first_seed: self.first_seed,
+            trials: self.trials,
+        }
     }
 
     /// The settings every episode of the directory must share.
@@ -247,21 +261,13 @@ pub fn read_eval_file(dir: &Path) -> anyhow::Result<Option<EvalFile>> {
 }
 
 /// Write `dir/eval.json` for `settings`, merged with the file already there; errors when the
-/// directory holds episodes of other settings.
+/// directory holds episodes of other settings, or of another registration
+/// ([`crate::protocol::claim_registration`], which writes `registration.json`).
 pub fn claim_dir(dir: &Path, settings: &EvalSettings) -> anyhow::Result<EvalFile> {
     std::fs::create_dir_all(dir)
         .with_context(|| format!("cannot create the output directory {}", dir.display()))?;
-    let episode = settings.episode_settings();
-    let mut file = EvalFile {
-        episode: episode.clone(),
-        methods: settings
-            .methods
-            .iter()
-            .map(|m| m.name().to_string())
-            .collect(),
-        first_seed: settings.first_seed,
-        trials: settings.trials,
-    };
+    let mut file = settings.eval_file();
+    let episode = file.episode.clone();
     if let Some(old) = read_eval_file(dir)? {
         if old.episode != episode {
             let (name, there, here) = old.episode.first_difference(&episode);
@@ -289,6 +295,8 @@ pub fn claim_dir(dir: &Path, settings: &EvalSettings) -> anyhow::Result<EvalFile
         file.methods = methods;
         file.trials = file.trials.max(old.trials);
     }
+    // Before eval.json is written: whether the directory held an evaluation decides.
+    crate::protocol::claim_registration(dir, settings.registration.as_ref())?;
     let text = serde_json::to_string_pretty(&file)?;
     // Shards on several hosts may claim one directory at once: dips-batch's writer names its
     // temporary file after the host too, so their writes never share one.

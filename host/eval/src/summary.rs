@@ -11,6 +11,7 @@ use dips_plot::{BoxPlot, BoxSeries};
 use dips_report::EpisodeFile;
 use serde::Serialize;
 
+use crate::protocol::{Registration, RegistrationStatus, read_registration};
 use crate::run::{EpisodeWall, WALL_FILE};
 use crate::settings::{EvalFile, episode_dir, read_eval_file};
 
@@ -125,6 +126,9 @@ pub struct Summary {
     pub task: String,
     /// The evaluation's settings.
     pub eval: EvalFile,
+    /// Its registration under a protocol (`registration.json`), if it ran under one.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub registration: Option<Registration>,
     /// What the outcome is, with its unit.
     pub outcome: &'static str,
     /// Whether a lower outcome is better (both tasks: yes).
@@ -199,6 +203,7 @@ pub fn summarize(dir: &Path) -> anyhow::Result<Summary> {
             dir.join("eval.json").display()
         )
     })?;
+    let registration = read_registration(dir)?;
     let mut trials = Vec::new();
     let mut methods = Vec::new();
     for m in &eval.methods {
@@ -233,6 +238,7 @@ pub fn summarize(dir: &Path) -> anyhow::Result<Summary> {
         episode_wall_total_s: trials.iter().map(|t| t.wall_s).sum(),
         task,
         eval,
+        registration,
         methods,
         trials,
     };
@@ -346,6 +352,35 @@ pub fn shortfall(s: &Summary, asked: Option<usize>) -> Vec<String> {
     lines
 }
 
+/// What a registration makes of the results, as a paragraph of `results.md`.
+fn registration_line(r: &Registration) -> String {
+    let what = match r.status {
+        RegistrationStatus::Registered => "the registered run of this protocol".to_string(),
+        RegistrationStatus::Rerun => format!(
+            "a rerun on a spent range (spent by {}); it never replaces the registered result",
+            r.spent_by.join(", ")
+        ),
+        RegistrationStatus::Tuning => "a tuning run (seeds below 1000), never registered".into(),
+        RegistrationStatus::Unregistered => {
+            "a run of an uncommitted protocol, not registered".into()
+        }
+    };
+    format!(
+        "**{}**: {what}. Protocol `{}` (`{}`, sha256 `{}`), commit {}{}, CPU {}.\n\n",
+        r.status.name(),
+        r.name,
+        r.protocol,
+        r.protocol_sha256,
+        r.stamp.commit.as_deref().unwrap_or("none"),
+        if r.stamp.dirty == Some(true) {
+            " (tree dirty)"
+        } else {
+            ""
+        },
+        r.stamp.cpu,
+    )
+}
+
 /// The Markdown table of a summary.
 pub fn markdown(s: &Summary) -> String {
     let screwdriver = s.task == "screwdriver";
@@ -372,6 +407,9 @@ pub fn markdown(s: &Summary) -> String {
         s.eval.first_seed,
         s.eval.first_seed + s.eval.trials.saturating_sub(1) as u64,
     );
+    if let Some(r) = &s.registration {
+        out.push_str(&registration_line(r));
+    }
     out.push_str(&format!(
         "| method | trials | valid | success | {what} mean ± std ({unit}) | median | planning call median / p90 (s) | CSVTO step median (s) | episode wall median (s) |\n\
          |---|---|---|---|---|---|---|---|---|\n"

@@ -44,6 +44,7 @@ fn settings(methods: Vec<Method>, trials: usize) -> EvalSettings {
         progress: ProgressMode::Hidden,
         stop_after: None,
         kernel: dips_link::KernelTarget::InProcess,
+        registration: None,
     }
 }
 
