@@ -145,7 +145,7 @@ impl core::fmt::Display for SamplingMethod {
         match *self {
             Self::Ddpm { .. } => f.write_str("ddpm"),
             Self::DdpmStrided { steps, .. } => write!(f, "ddpm:{steps}"),
-            Self::Ddim { steps, eta } if eta == 0.0 => write!(f, "ddim:{steps}"),
+            Self::Ddim { steps, eta: 0.0 } => write!(f, "ddim:{steps}"),
             Self::Ddim { steps, eta } => write!(f, "ddim:{steps}:{eta}"),
         }
     }
