@@ -77,11 +77,11 @@ pub struct SearchBenchArgs {
 }
 
 /// Run `dips bench`.
-pub fn run(args: BenchArgs) -> anyhow::Result<()> {
+pub fn run(args: BenchArgs, hands: &dyn dips_host::hand::Hands) -> anyhow::Result<()> {
     match args.command {
         BenchCommand::Search(a) => search(&a),
         BenchCommand::Inference(a) => super::bench_inference::run(&a),
-        BenchCommand::Sim(a) => super::bench_sim::main(a),
+        BenchCommand::Sim(a) => super::bench_sim::main(a, hands),
         BenchCommand::Csvto(a) => super::bench_csvto::run(a),
         BenchCommand::Plan(a) => super::bench_plan::run(&a),
         BenchCommand::Firmware(a) => super::bench_firmware::run(&a),

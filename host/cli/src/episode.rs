@@ -1,5 +1,6 @@
-//! `dips episode`: one closed-loop episode of a method in the quasi-static world
-//! (`docs/contracts.md` §5; the methods are `dips_host::online`'s).
+//! `dips episode`: one closed-loop episode of a method, executed on our quasi-static world or,
+//! with `--hand mujoco`, on the MuJoCo hand (`docs/contracts.md` §5; the methods are
+//! `dips_host::online`'s; the planner always models our world).
 
 use std::path::PathBuf;
 
@@ -7,12 +8,12 @@ use anyhow::{Context, bail};
 use clap::Args;
 
 use dips_host::execute::ExecSettings;
+use dips_host::hand::Hands;
 use dips_host::online::{Method, OnlineSettings, run_online};
 use dips_host::planning::{Models, PlanService, models_dir};
 use dips_host::problems::Mode;
 use dips_host::problems::mode::parse_mode;
 use dips_host::scenes::SceneKind;
-use dips_host::world::World;
 use dips_link::{KernelTarget, RemotePlanner};
 
 use crate::model::EngineArg;
@@ -71,10 +72,13 @@ pub struct EpisodeArgs {
     /// child), `spawn:PATH` or `tcp://HOST:PORT`. The result is the same bit for bit.
     #[arg(long, default_value = "in-process", value_parser = KernelTarget::parse)]
     pub kernel: KernelTarget,
+    /// The hand that executes the actions.
+    #[command(flatten)]
+    pub hand: crate::hands::HandArgs,
 }
 
 /// Run the command.
-pub fn run(args: EpisodeArgs) -> anyhow::Result<()> {
+pub fn run(args: EpisodeArgs, hands: &dyn Hands) -> anyhow::Result<()> {
     let task = SceneKind::from_name(&args.task).with_context(|| {
         format!(
             "unknown task `{}` (expected screwdriver or card)",
@@ -96,6 +100,7 @@ pub fn run(args: EpisodeArgs) -> anyhow::Result<()> {
         ),
         None => None,
     };
+    let hand_options = args.hand.options(args.seed)?;
     // Fail on the output path before the episode, not after it.
     std::fs::create_dir_all(&args.out)
         .with_context(|| format!("cannot create the output directory {}", args.out.display()))?;
@@ -118,7 +123,10 @@ pub fn run(args: EpisodeArgs) -> anyhow::Result<()> {
         search_depth: args.depth.search_depth(),
     };
     let exec = ExecSettings::for_task(task);
-    let mut world = World::new(task);
+    let kind = args.hand.kind();
+    let mut hand = hands
+        .open(kind, task, &hand_options)
+        .with_context(|| format!("--hand {kind}"))?;
     let mut progress = |line: &str| crate::output::note(line);
     let link = if method.searches() {
         args.kernel.open()?
@@ -133,7 +141,7 @@ pub fn run(args: EpisodeArgs) -> anyhow::Result<()> {
         _ => None,
     };
     let result = run_online(
-        &mut world,
+        &mut *hand,
         method,
         args.seed,
         models,
@@ -142,12 +150,11 @@ pub fn run(args: EpisodeArgs) -> anyhow::Result<()> {
         &settings,
         &mut progress,
     )?;
-    result
-        .write(&args.out)
-        .with_context(|| format!("writing {}", args.out.join("result.json").display()))?;
+    dips_eval::run::write_result(&result, &args.out, hand_options.noise)?;
     write_report(&args.out, args.render)?;
     crate::note!(
-        "done: {} modes executed, valid {}, {}",
+        "done on {}: {} modes executed, valid {}, {}",
+        result.hand,
         result.modes.len(),
         result.valid,
         match (result.final_yaw, result.final_distance_m) {

@@ -9,7 +9,8 @@ use dips_link::KernelTarget;
 
 use dips_batch::ShardSpec;
 use dips_eval::protocol::{Protocol, ProtocolFile, RegistrationStatus};
-use dips_eval::{EvalSettings, run_eval, summarize};
+use dips_eval::{EvalSettings, run_eval_on, summarize};
+use dips_host::hand::Hands;
 use dips_host::online::{Method, OnlineSettings};
 use dips_host::planning::models_dir;
 use dips_host::scenes::SceneKind;
@@ -113,6 +114,10 @@ pub struct EvalArgs {
     /// (each method's median trial; a small report to publish).
     #[arg(long, default_value = "all", value_parser = ["all", "medians"])]
     pub episode_reports: String,
+    /// The hand that executes the episodes (default: the protocol's, else our world), and
+    /// its tracker noise; recorded in `eval.json`.
+    #[command(flatten)]
+    pub hand: crate::hands::HandArgs,
 }
 
 /// `dips eval` subcommands.
@@ -193,7 +198,7 @@ fn merge(command: &EvalCommand) -> anyhow::Result<()> {
 }
 
 /// Run the command.
-pub fn run(args: EvalArgs) -> anyhow::Result<()> {
+pub fn run(args: EvalArgs, hands: &dyn Hands) -> anyhow::Result<()> {
     if let Some(command) = &args.command {
         return merge(command);
     }
@@ -290,6 +295,15 @@ pub fn run(args: EvalArgs) -> anyhow::Result<()> {
         progress: crate::batch::progress_mode(args.quiet),
         stop_after: None,
         kernel: args.kernel.clone(),
+        hand: args
+            .hand
+            .hand
+            .or(given.map(|e| e.episode.hand))
+            .unwrap_or_default(),
+        tracker_noise: match (&args.hand.noise_position, &args.hand.noise_rotation, given) {
+            (None, None, Some(e)) => e.episode.tracker_noise,
+            _ => args.hand.noise()?,
+        },
         registration: None,
     };
     if let Some(file) = &args.write_protocol {
@@ -321,7 +335,7 @@ pub fn run(args: EvalArgs) -> anyhow::Result<()> {
         episode_reports: &args.episode_reports,
         quiet: args.quiet,
     };
-    let report = run_eval(&settings, &out)?;
+    let report = run_eval_on(&settings, &out, hands)?;
     let episodes = |n: usize| if n == 1 { "episode" } else { "episodes" };
     crate::output::note(&format!(
         "eval {}: {} {} run ({} with errors), {} already done, {:.0} s",

@@ -1,6 +1,7 @@
 //! The `dips` command line (`docs/contracts.md` §5). Each command group lives in its own module.
 
 use clap::{Parser, Subcommand};
+use dips_host::hand::{HandKind, Hands, WorldHands};
 
 pub mod batch;
 pub mod bench;
@@ -12,6 +13,7 @@ pub mod bench_sim;
 pub mod datagen;
 pub mod episode;
 pub mod eval;
+pub mod hands;
 pub mod model;
 pub mod model_quality;
 pub mod output;
@@ -55,15 +57,46 @@ pub enum Command {
     Train(train::TrainArgs),
 }
 
-/// Parse the process arguments and run the command.
+impl Command {
+    /// The hand the command executes on (`--hand`), for the commands that take one.
+    pub fn hand(&self) -> Option<HandKind> {
+        match self {
+            Command::Episode(a) => Some(a.hand.kind()),
+            Command::Eval(a) => a.hand.hand,
+            Command::Sim(a) => match &a.command {
+                sim::SimCommand::Run(r) => Some(r.hand),
+                sim::SimCommand::Render(_) => None,
+            },
+            Command::Bench(a) => match &a.command {
+                bench::BenchCommand::Sim(b) => Some(b.hand),
+                _ => None,
+            },
+            _ => None,
+        }
+    }
+}
+
+/// Parse the process arguments and run the command with our world as the only hand; a
+/// command for another hand (`--hand mujoco`) runs in the `dips-mujoco` binary instead
+/// ([`hands::delegate`]).
 pub fn main() -> anyhow::Result<()> {
+    main_with(&WorldHands)
+}
+
+/// Parse the process arguments and run the command, opening the hands that execute actions
+/// with `hands` (`dips-mujoco` registers the MuJoCo hand here). A hand `hands` lacks is
+/// delegated to the binary that has it.
+pub fn main_with(hands: &dyn Hands) -> anyhow::Result<()> {
     let cli = Cli::parse();
+    if let Some(kind) = cli.command.hand().filter(|&k| !hands.has(k)) {
+        return hands::delegate(kind);
+    }
     match cli.command {
         Command::Model(args) => model::run(args),
-        Command::Bench(args) => bench::run(args),
-        Command::Sim(args) => sim::main(args),
-        Command::Episode(args) => episode::run(args),
-        Command::Eval(args) => eval::run(*args),
+        Command::Bench(args) => bench::run(args, hands),
+        Command::Sim(args) => sim::main(args, hands),
+        Command::Episode(args) => episode::run(args, hands),
+        Command::Eval(args) => eval::run(*args, hands),
         Command::Plan(args) => plan::run(args),
         Command::Render(args) => render::run(args),
         Command::Datagen(args) => datagen::run(args),

@@ -8,6 +8,10 @@
 //! (`contacts[0]` is empty): finger, part, point, normal (out of the part), force (exerted by
 //! the finger on the part, N) and signed distance.
 //!
+//! `--hand mujoco` executes the actions on the MuJoCo hand instead (through `dips-mujoco`,
+//! docs/mujoco.md): the same commands and trajectory, the contacts as the hand reads them, no
+//! world flags, and `max_penetration` from those contacts. The trajectory records its `hand`.
+//!
 //! `dips sim render --scene S [--trajectory OUT.json] [--step K] --out FILE.svg|FILE.png`
 //! draws the scene's initial state, or state K (default: last) of a trajectory with its
 //! contacts and forces (green, 5 mm per N, exerted by the finger on the part) and the paths of
@@ -18,11 +22,11 @@ use std::path::{Path, PathBuf};
 use clap::{Args, Subcommand};
 use serde::{Deserialize, Serialize};
 
-use dips_host::hand::Recorder;
+use dips_host::hand::{Hand, HandKind, HandOptions, Hands, Recorder};
 use dips_host::kinematics::HandModel;
 use dips_host::render;
 use dips_host::scenes::SceneKind;
-use dips_host::world::{ContactReport, StepFlag, World, WorldError, WorldParams};
+use dips_host::world::{ContactReport, ObjectState, StepFlag, World, WorldError, WorldParams};
 
 /// `dips sim` arguments.
 #[derive(Debug, Args)]
@@ -53,12 +57,26 @@ pub struct RunArgs {
     /// Output trajectory (JSON).
     #[arg(long)]
     pub out: PathBuf,
-    /// Optional hand description (default: the built-in Allegro v4 file).
-    #[arg(long)]
-    pub hand: Option<PathBuf>,
-    /// Optional hand log (JSON lines) of every step, replayable with the `hand` module.
+    /// Which hand executes the actions: `world` (our quasi-static world) or `mujoco` (the
+    /// MuJoCo hand, through the dips-mujoco binary).
+    #[arg(long, value_name = "HAND", default_value_t = HandKind::World)]
+    pub hand: HandKind,
+    /// Optional hand description (default: the built-in Allegro v4 file; our world only).
+    #[arg(long, value_name = "FILE")]
+    pub hand_model: Option<PathBuf>,
+    /// Optional hand log (JSON lines) of every step, replayable with the `hand` module (our
+    /// world only).
     #[arg(long)]
     pub log: Option<PathBuf>,
+    /// Tracker noise (`--hand mujoco`): position σ (m) of the reported object pose.
+    #[arg(long, value_name = "M", default_value_t = 0.0)]
+    pub noise_position: f64,
+    /// Tracker noise (`--hand mujoco`): rotation σ (rad per axis) of the reported object pose.
+    #[arg(long, value_name = "RAD", default_value_t = 0.0)]
+    pub noise_rotation: f64,
+    /// Seed of the tracker noise.
+    #[arg(long, default_value_t = 0)]
+    pub seed: u64,
 }
 
 /// `dips sim render` arguments (`dips render` takes the same inputs without `--scene` and
@@ -198,6 +216,9 @@ pub struct Commands {
 pub struct Trajectory {
     /// Scene name.
     pub scene: String,
+    /// The hand that executed the actions (files without it ran on our world).
+    #[serde(default)]
+    pub hand: HandKind,
     /// Raw state rows, initial state first.
     pub states: Vec<Vec<f64>>,
     /// Validity of each state row.
@@ -311,6 +332,7 @@ pub fn run_commands(
 ) -> (Trajectory, Option<(usize, WorldError)>) {
     let mut traj = Trajectory {
         scene: world.scene().name().into(),
+        hand: HandKind::World,
         states: vec![world.state()],
         valid: vec![world.valid()],
         contacts: vec![Vec::new()],
@@ -348,10 +370,136 @@ fn write_json<T: Serialize>(path: &Path, value: &T) -> Result<(), SimCliError> {
     })
 }
 
-fn run(args: &RunArgs) -> Result<(), SimCliError> {
+/// The raw state row of a hand as measured: task joints, then the object coordinates.
+pub fn hand_state_row(hand: &dyn Hand) -> Vec<f64> {
+    let scene = hand.scene();
+    let q = hand.joint_positions();
+    let mut row: Vec<f64> = scene
+        .task_fingers()
+        .iter()
+        .flat_map(|f| q[f.index()])
+        .collect();
+    row.extend(hand.object_pose().coords);
+    row
+}
+
+/// Task validity of a hand's measured object pose (our world's rule).
+pub fn hand_valid(hand: &dyn Hand) -> bool {
+    let pose = hand.object_pose();
+    match hand.scene() {
+        SceneKind::Screwdriver => ObjectState::Screwdriver {
+            orientation: pose.pose.rotation,
+            yaw: pose.coords[2],
+        },
+        SceneKind::Card => ObjectState::Card {
+            pose: pose.pose,
+            theta: pose.coords[2],
+        },
+    }
+    .valid()
+}
+
+/// Execute commands on any hand (`--hand` other than our world): the contacts are the
+/// hand's readings, the penetration the deepest of them, no world flags.
+pub fn run_commands_on(hand: &mut dyn Hand, dq: &[Vec<f64>], kind: HandKind) -> Trajectory {
+    let scene = hand.scene();
+    let penetration = |h: &dyn Hand| {
+        h.contact_readings()
+            .unwrap_or_default()
+            .iter()
+            .map(|c| -c.phi)
+            .fold(0.0, f64::max)
+    };
+    let mut traj = Trajectory {
+        scene: scene.name().into(),
+        hand: kind,
+        states: vec![hand_state_row(hand)],
+        valid: vec![hand_valid(hand)],
+        contacts: vec![Vec::new()],
+        max_penetration: vec![penetration(hand)],
+        flags: vec![Vec::new()],
+        metric: Vec::new(),
+        error: None,
+    };
+    for (k, row) in dq.iter().enumerate() {
+        let mut targets = hand.joint_positions();
+        for (i, f) in scene.task_fingers().iter().enumerate() {
+            for j in 0..4 {
+                targets[f.index()][j] += row[4 * i + j];
+            }
+        }
+        if let Err(e) = hand.command(&targets) {
+            traj.error = Some(format!("action {k}: {e}"));
+            break;
+        }
+        traj.states.push(hand_state_row(hand));
+        traj.valid.push(hand_valid(hand));
+        traj.contacts
+            .push(hand.contact_readings().unwrap_or_default());
+        traj.max_penetration.push(penetration(hand));
+        traj.flags.push(Vec::new());
+    }
+    traj
+}
+
+/// `dips sim run --hand H` for a hand other than our world.
+fn run_on(args: &RunArgs, hands: &dyn Hands) -> Result<(), SimCliError> {
     let scene = parse_scene(&args.scene)?;
     let dq = load_commands(&args.commands, scene)?;
-    let hand = match &args.hand {
+    let kind = args.hand;
+    if args.hand_model.is_some() || args.log.is_some() {
+        return Err(anyhow::anyhow!(
+            "--hand-model and --log are for our world; --hand {kind} uses the built-in Allegro v4"
+        )
+        .into());
+    }
+    check_limits(&args.commands, &dq, scene, &HandModel::allegro_v4())?;
+    let options = HandOptions {
+        noise: dips_host::hand::TrackerNoise::from_flags(args.noise_position, args.noise_rotation)
+            .map_err(anyhow::Error::msg)?,
+        seed: args.seed,
+    };
+    let mut hand = hands
+        .open(kind, scene, &options)
+        .map_err(|e| anyhow::Error::from(e).context(format!("--hand {kind}")))?;
+    let mut traj = run_commands_on(&mut *hand, &dq, kind);
+    traj.metric = traj
+        .states
+        .iter()
+        .map(|s| task_metric(scene, &traj.states[0], s))
+        .collect();
+    write_json(&args.out, &traj)?;
+    if let Some(e) = &traj.error {
+        return Err(anyhow::anyhow!("{e} (the trajectory up to it was written)").into());
+    }
+    crate::output::line(&format!(
+        "{}",
+        serde_json::json!({
+            "scene": scene.name(),
+            "hand": kind,
+            "actions": dq.len(),
+            "final_state": traj.states.last(),
+            "valid": traj.valid.last(),
+            "metric": traj.metric.last(),
+        })
+    ))?;
+    Ok(())
+}
+
+fn run(args: &RunArgs, hands: &dyn Hands) -> Result<(), SimCliError> {
+    if args.hand != HandKind::World {
+        return run_on(args, hands);
+    }
+    let scene = parse_scene(&args.scene)?;
+    let dq = load_commands(&args.commands, scene)?;
+    if args.noise_position != 0.0 || args.noise_rotation != 0.0 {
+        return Err(anyhow::anyhow!(
+            "our world reports the exact object pose; tracker noise (--noise-position, \
+             --noise-rotation) needs --hand mujoco"
+        )
+        .into());
+    }
+    let hand = match &args.hand_model {
         Some(p) => HandModel::load(p).map_err(anyhow::Error::from)?,
         None => HandModel::allegro_v4(),
     };
@@ -367,6 +515,7 @@ fn run(args: &RunArgs) -> Result<(), SimCliError> {
                 Recorder::create(world, log, Some(params)).map_err(anyhow::Error::from)?;
             let mut traj = Trajectory {
                 scene: scene.name().into(),
+                hand: HandKind::World,
                 states: vec![rec.inner().state()],
                 valid: vec![rec.inner().valid()],
                 contacts: vec![Vec::new()],
@@ -457,9 +606,9 @@ fn render_cmd(args: &RenderArgs) -> anyhow::Result<()> {
 }
 
 /// Run `dips sim`.
-pub fn main(args: SimArgs) -> anyhow::Result<()> {
+pub fn main(args: SimArgs, hands: &dyn Hands) -> anyhow::Result<()> {
     match args.command {
-        SimCommand::Run(a) => run(&a)?,
+        SimCommand::Run(a) => run(&a, hands)?,
         SimCommand::Render(a) => render_cmd(&a)?,
     }
     Ok(())

@@ -188,7 +188,7 @@ fn hand_file_is_loaded_at_run_time() {
             .arg(&c)
             .arg("--out")
             .arg(dir.join("out.json"))
-            .arg("--hand")
+            .arg("--hand-model")
             .arg(hand)
             .output()
             .unwrap();

@@ -37,6 +37,6 @@ pub mod run;
 pub mod settings;
 pub mod summary;
 
-pub use run::{EvalReport, run_eval};
+pub use run::{EvalReport, run_eval, run_eval_on};
 pub use settings::{EpisodeSettings, EvalSettings};
 pub use summary::{Summary, summarize};

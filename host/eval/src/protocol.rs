@@ -916,6 +916,8 @@ mod tests {
                 search_depth: "modes-left".into(),
                 models: "/m".into(),
                 engine: "kernel".into(),
+                hand: Default::default(),
+                tracker_noise: None,
             },
             methods: vec!["dips".into()],
             first_seed,

@@ -9,10 +9,10 @@ use std::time::Instant;
 use anyhow::{Context, anyhow};
 use dips_batch::Progress;
 use dips_host::atomic_write::write_atomic;
-use dips_host::execute::ExecSettings;
+use dips_host::execute::{EpisodeResult, ExecSettings};
+use dips_host::hand::{HandOptions, Hands, TrackerNoise, WorldHands};
 use dips_host::online::{Method, run_online};
 use dips_host::planning::{Models, PlanService};
-use dips_host::world::World;
 use dips_link::RemotePlanner;
 use serde::{Deserialize, Serialize};
 
@@ -56,6 +56,28 @@ pub fn finished(dir: &Path) -> bool {
     }
 }
 
+/// Write `result` to `dir/result.json` (atomically), with the tracker noise it ran under as
+/// `tracker_noise` when there was some (`result.json`'s `hand` names the executing hand).
+pub fn write_result(
+    result: &EpisodeResult,
+    dir: &Path,
+    noise: Option<TrackerNoise>,
+) -> anyhow::Result<()> {
+    let file = dir.join("result.json");
+    let Some(noise) = noise else {
+        return result
+            .write(dir)
+            .with_context(|| format!("writing {}", file.display()));
+    };
+    let mut value = serde_json::to_value(result)?;
+    if let Some(map) = value.as_object_mut() {
+        map.insert("tracker_noise".into(), serde_json::to_value(noise)?);
+    }
+    std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+    write_atomic(&file, serde_json::to_string_pretty(&value)?.as_bytes())
+        .with_context(|| format!("writing {}", file.display()))
+}
+
 /// What a run did.
 #[derive(Debug, Clone, Serialize)]
 pub struct EvalReport {
@@ -72,6 +94,7 @@ pub struct EvalReport {
 /// Run one episode into `dir`: `result.json` (or the error in `wall.json`), `log.txt`,
 /// `wall.json` last, so that an episode counts as finished only when all is written.
 fn run_episode(
+    hands: &dyn Hands,
     settings: &EvalSettings,
     method: Method,
     seed: u64,
@@ -89,7 +112,15 @@ fn run_episode(
             None
         };
         let exec = ExecSettings::for_task(settings.task);
-        let mut world = World::new(settings.task);
+        // Opened on this worker thread: a hand need not be `Send`.
+        let mut hand = hands.open(
+            settings.hand,
+            settings.task,
+            &HandOptions {
+                noise: settings.tracker_noise,
+                seed,
+            },
+        )?;
         let mut progress = |line: &str| {
             let _ = writeln!(log, "[{:8.1} s] {line}", t0.elapsed().as_secs_f64());
         };
@@ -108,7 +139,7 @@ fn run_episode(
             None => None,
         };
         run_online(
-            &mut world,
+            &mut *hand,
             method,
             seed,
             models,
@@ -120,9 +151,7 @@ fn run_episode(
     })();
     let error = match outcome {
         Ok(result) => {
-            result
-                .write(dir)
-                .with_context(|| format!("writing {}", dir.join("result.json").display()))?;
+            write_result(&result, dir, settings.tracker_noise)?;
             None
         }
         Err(e) => Some(format!("{e:#}")),
@@ -147,9 +176,32 @@ fn run_episode(
 ///
 /// The models are loaded once up front, so a missing or broken model fails here and not in
 /// every episode. An I/O failure stops the run (finished episodes stay); an episode whose
-/// world or optimiser fails is recorded as a failed trial and the run goes on.
+/// world or optimiser fails is recorded as a failed trial and the run goes on. The episodes
+/// run on our world ([`run_eval_on`] takes the hands).
 pub fn run_eval(settings: &EvalSettings, dir: &Path) -> anyhow::Result<EvalReport> {
+    run_eval_on(settings, dir, &WorldHands)
+}
+
+/// [`run_eval`] with the episodes executed on `settings.hand`, opened by `hands` (one fresh
+/// hand per episode, on its worker thread).
+pub fn run_eval_on(
+    settings: &EvalSettings,
+    dir: &Path,
+    hands: &dyn Hands,
+) -> anyhow::Result<EvalReport> {
     settings.validate()?;
+    // A hand that cannot be opened (not in this binary, a missing library, noise on our
+    // world) fails here, before the directory is claimed.
+    hands
+        .open(
+            settings.hand,
+            settings.task,
+            &HandOptions {
+                noise: settings.tracker_noise,
+                seed: settings.first_seed,
+            },
+        )
+        .with_context(|| format!("--hand {}", settings.hand))?;
     claim_dir(dir, settings)?;
     if settings.methods.iter().any(|m| m.needs_models()) {
         Models::load(settings.engine, &settings.models, settings.task.task())
@@ -202,7 +254,7 @@ pub fn run_eval(settings: &EvalSettings, dir: &Path) -> anyhow::Result<EvalRepor
                     let Some((method, seed)) = next else { return };
                     let ep_dir = episode_dir(dir, method.name(), seed);
                     let what = format!("{} seed {seed}", method.name());
-                    match run_episode(settings, method, seed, &ep_dir) {
+                    match run_episode(hands, settings, method, seed, &ep_dir) {
                         Ok(None) => progress.item_done(Some(&what)),
                         Ok(Some(e)) => {
                             errors.fetch_add(1, Ordering::Relaxed);

@@ -4,6 +4,7 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{Context, bail};
 use dips_batch::{ProgressMode, Shard};
+use dips_host::hand::{HandKind, TrackerNoise};
 use dips_host::online::{Method, OnlineSettings, SearchDepth, check_time_budget_s};
 use dips_host::planning::parse_sampler;
 use dips_host::scenes::SceneKind;
@@ -39,6 +40,14 @@ pub struct EpisodeSettings {
     pub models: String,
     /// Engine of the models (`kernel` or `tract`).
     pub engine: String,
+    /// The hand that executed the episodes (`--hand`). Written only when it is not our world,
+    /// so that the files of our world's runs, and the protocols that hold them, read as before:
+    /// absent means `world`.
+    #[serde(default, skip_serializing_if = "is_world")]
+    pub hand: HandKind,
+    /// The simulated tracker's noise (`--noise-position`, `--noise-rotation`; absent: none).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub tracker_noise: Option<TrackerNoise>,
 }
 
 impl EpisodeSettings {
@@ -60,6 +69,10 @@ impl EpisodeSettings {
             here,
         )
     }
+}
+
+fn is_world(hand: &HandKind) -> bool {
+    *hand == HandKind::World
 }
 
 /// What [`EpisodeSettings::cost_to_come`] was before it was recorded.
@@ -108,6 +121,11 @@ pub struct EvalSettings {
     /// Where the planning calls are made (`--kernel`); the results are the same bit for bit,
     /// so it is not part of [`EpisodeSettings`].
     pub kernel: KernelTarget,
+    /// The hand that executes the episodes (`--hand`); each worker thread opens its own.
+    pub hand: HandKind,
+    /// Tracker noise of the executing hand (`None`: the exact pose); episode `s` seeds it with
+    /// `s`.
+    pub tracker_noise: Option<TrackerNoise>,
     /// The run's registration under a protocol (`dips eval --protocol`,
     /// [`crate::protocol::ProtocolFile::register`]), written to `registration.json` when the
     /// directory is claimed; `None` for a run without a protocol.
@@ -213,6 +231,8 @@ impl EvalSettings {
                 EngineKind::Tract => "tract",
             }
             .to_string(),
+            hand: self.hand,
+            tracker_noise: self.tracker_noise,
         }
     }
 }
@@ -274,7 +294,7 @@ pub fn claim_dir(dir: &Path, settings: &EvalSettings) -> anyhow::Result<EvalFile
             bail!(
                 "{} holds an evaluation with other settings: {name} is {there} there and {here} \
                  here; use another --out, or the same task, sampler, budgets, mode limit, \
-                 cost-to-come, search depth, models and engine",
+                 cost-to-come, search depth, models, engine, hand and tracker noise",
                 dir.join(EVAL_FILE).display(),
             );
         }
@@ -326,7 +346,39 @@ mod tests {
             search_depth: "modes-left".into(),
             models: "/m".into(),
             engine: "kernel".into(),
+            hand: HandKind::World,
+            tracker_noise: None,
         }
+    }
+
+    #[test]
+    fn the_hand_round_trips_and_our_world_is_the_default() {
+        let world = serde_json::to_value(settings()).unwrap();
+        assert!(world.get("hand").is_none() && world.get("tracker_noise").is_none());
+        assert_eq!(
+            serde_json::from_value::<EpisodeSettings>(world).unwrap(),
+            settings()
+        );
+        let mujoco = EpisodeSettings {
+            hand: HandKind::Mujoco,
+            tracker_noise: Some(TrackerNoise {
+                position: 0.001,
+                rotation: 0.02,
+            }),
+            ..settings()
+        };
+        let v = serde_json::to_value(&mujoco).unwrap();
+        assert_eq!(v["hand"], "mujoco");
+        assert_eq!(v["tracker_noise"]["rotation"], 0.02);
+        assert_eq!(
+            serde_json::from_value::<EpisodeSettings>(v).unwrap(),
+            mujoco
+        );
+        assert_eq!(
+            settings().first_difference(&mujoco).0,
+            "--hand",
+            "a resumed run on another hand is refused"
+        );
     }
 
     #[test]

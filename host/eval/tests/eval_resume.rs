@@ -44,6 +44,8 @@ fn settings(methods: Vec<Method>, trials: usize) -> EvalSettings {
         progress: ProgressMode::Hidden,
         stop_after: None,
         kernel: dips_link::KernelTarget::InProcess,
+        hand: Default::default(),
+        tracker_noise: None,
         registration: None,
     }
 }

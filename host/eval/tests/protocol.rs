@@ -64,6 +64,8 @@ fn settings(models: &Path, methods: Vec<Method>, first_seed: u64) -> EvalSetting
         progress: ProgressMode::Hidden,
         stop_after: None,
         kernel: dips_link::KernelTarget::InProcess,
+        hand: Default::default(),
+        tracker_noise: None,
         registration: None,
     }
 }

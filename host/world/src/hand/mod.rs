@@ -15,6 +15,9 @@ use crate::kinematics::{HandJoints, HandModel};
 use crate::scenes::SceneKind;
 use crate::world::{ObjectState, StepReport, World, WorldError, WorldParams};
 
+mod kind;
+pub use kind::{HandKind, HandOptions, Hands, TrackerNoise, UnknownHand, WorldHands, open_world};
+
 /// The object's pose as a controller sees it.
 #[derive(Debug, Clone, PartialEq)]
 pub struct ObjectPose {
