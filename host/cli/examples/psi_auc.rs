@@ -9,7 +9,7 @@
 //! ```sh
 //! dips datagen --task screwdriver --demos 6 --first-seed 900 --out target/particles/sd-heldout
 //! cargo run --release -p dips-cli --example psi_auc -- --data target/particles/sd-heldout \
-//!     [--task screwdriver] [--models DIR] [--every 8]
+//!     [--task screwdriver] [--models DIR] [--every 8] [--no-ddpm256]
 //! ```
 
 use std::path::PathBuf;
@@ -18,8 +18,8 @@ use anyhow::{Context, bail};
 use dips_dataset::{demo_files, read_demo};
 use dips_host::planning::{Models, models_dir, parse_sampler, sample_trajectories};
 use dips_kernel::adapters::StartAnchor;
-use dips_kernel::diffusion::SamplerConfig;
 use dips_kernel::diffusion::normalize::normalize_in_place;
+use dips_kernel::diffusion::{SamplerConfig, SamplingMethod};
 use dips_kernel::engine::DiscriminatorEngine;
 use dips_kernel::mode::Task;
 use dips_kernel::rng::KernelRng;
@@ -70,6 +70,7 @@ fn run() -> anyhow::Result<()> {
         None::<PathBuf>,
         8usize,
     );
+    let mut with_ddpm256 = true;
     let mut args = std::env::args().skip(1);
     while let Some(a) = args.next() {
         match a.as_str() {
@@ -77,7 +78,10 @@ fn run() -> anyhow::Result<()> {
             "--task" => task_name = args.next().context("--task T")?,
             "--models" => models_arg = Some(args.next().context("--models DIR")?.into()),
             "--every" => every = args.next().context("--every N")?.parse()?,
-            f => bail!("unknown argument {f} (--data DIR, --task T, --models DIR, --every N)"),
+            "--no-ddpm256" => with_ddpm256 = false,
+            f => bail!(
+                "unknown argument {f} (--data DIR, --task T, --models DIR, --every N, --no-ddpm256)"
+            ),
         }
     }
     let data = data.context("--data DIR is required")?;
@@ -123,6 +127,10 @@ fn run() -> anyhow::Result<()> {
     ];
     let mut rows = Vec::new();
     for (name, config, anchor) in samplers {
+        // DDPM-256 costs 16× the others (about 5 min on 2 cores); its fakes do not depend on Ψ.
+        if !with_ddpm256 && matches!(config.method, SamplingMethod::Ddpm { .. }) {
+            continue;
+        }
         let t0 = std::time::Instant::now();
         let mut rng = KernelRng::seed_from_u64(11);
         let fake = sample_trajectories(
