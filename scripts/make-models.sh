@@ -12,57 +12,72 @@
 # Environment: DEMOS_SCREWDRIVER (default 40), MARKOV_SCREWDRIVER (default 40: screwdriver
 # demos whose sequences are drawn from the paper's Markov prior, seeds 100 on; docs/datagen.md),
 # DEMOS_CARD (default 128), WORK (default target/models-work: datasets, checkpoints and logs;
-# not committed).
+# not committed), TASKS (default "screwdriver card"), SEED (default 0: the training seed; the
+# data do not depend on it). SEED=0 writes the shipped models, onnx/models/<task>/; any other
+# seed writes onnx/models/<task>-seed<SEED>/ from the same data and settings, to measure how
+# much a result depends on the training run (docs/training.md, "Training seeds").
 set -euo pipefail
 cd "$(dirname "$0")/.."
 WORK=${WORK:-target/models-work}
+SEED=${SEED:-0}
+read -r -a TASK_LIST <<<"${TASKS:-screwdriver card}"
 declare -A DEMOS=([screwdriver]=${DEMOS_SCREWDRIVER:-40} [card]=${DEMOS_CARD:-128})
 mkdir -p "$WORK/logs"
+# Where a task's models of this seed are trained and where they are shipped.
+suffix() { [[ $SEED == 0 ]] && echo "" || echo "-seed$SEED"; }
+work_models() { echo "$WORK/models/$1$(suffix)"; }
+shipped() { echo "onnx/models/$1$(suffix)"; }
 
 cargo build --release -p dips-cli
 DIPS=target/release/dips
 
-for task in screwdriver card; do
+for task in "${TASK_LIST[@]}"; do
   echo "== datagen $task (${DEMOS[$task]} demos)"
   "$DIPS" datagen --task "$task" --demos "${DEMOS[$task]}" --out "$WORK/data/$task"
 done
 MARKOV=${MARKOV_SCREWDRIVER:-40}
-if [ "$MARKOV" -gt 0 ]; then
+if [ "$MARKOV" -gt 0 ] && [[ " ${TASK_LIST[*]} " == *" screwdriver "* ]]; then
   echo "== datagen screwdriver ($MARKOV demos from the Markov prior)"
   "$DIPS" datagen --task screwdriver --demos "$MARKOV" --first-seed 100 --sequences markov \
     --out "$WORK/data/screwdriver"
 fi
 
 pids=()
-for task in screwdriver card; do
-  echo "== train $task (log: $WORK/logs/train-$task.log)"
-  "$DIPS" train --task "$task" --data "$WORK/data/$task" --out "$WORK/models/$task" \
-    --settings "onnx/models/$task/settings.json" --quiet > "$WORK/logs/train-$task.log" 2>&1 &
+for task in "${TASK_LIST[@]}"; do
+  log="$WORK/logs/train-$task$(suffix).log"
+  echo "== train $task, seed $SEED (log: $log)"
+  "$DIPS" train --task "$task" --data "$WORK/data/$task" --out "$(work_models "$task")" \
+    --settings "onnx/models/$task/settings.json" --seed "$SEED" --quiet > "$log" 2>&1 &
   pids+=($!)
 done
 for p in "${pids[@]}"; do wait "$p"; done
 
 pids=()
-for task in screwdriver card; do
-  echo "== train the diffusion-policy baseline for $task (log: $WORK/logs/policy-$task.log)"
+for task in "${TASK_LIST[@]}"; do
+  log="$WORK/logs/policy-$task$(suffix).log"
+  echo "== train the diffusion-policy baseline for $task, seed $SEED (log: $log)"
   "$DIPS" train --policy --task "$task" --data "$WORK/data/$task" \
-    --out "$WORK/models/$task-policy" --settings "onnx/models/$task/policy/settings.json" \
-    --quiet > "$WORK/logs/policy-$task.log" 2>&1 &
+    --out "$WORK/models/$task-policy$(suffix)" --settings "onnx/models/$task/policy/settings.json" \
+    --seed "$SEED" --quiet > "$log" 2>&1 &
   pids+=($!)
 done
 for p in "${pids[@]}"; do wait "$p"; done
-for task in screwdriver card; do
+for task in "${TASK_LIST[@]}"; do
+  mkdir -p "$(shipped "$task")/policy"
+  [[ $SEED == 0 ]] || cp "onnx/models/$task/policy/settings.json" "$(shipped "$task")/policy/"
   for f in denoiser.onnx train_report.json; do
-    cp "$WORK/models/$task-policy/$f" "onnx/models/$task/policy/$f"
+    cp "$WORK/models/$task-policy$(suffix)/$f" "$(shipped "$task")/policy/$f"
   done
 done
 
-for task in screwdriver card; do
-  out="onnx/models/$task"
+for task in "${TASK_LIST[@]}"; do
+  out="$(shipped "$task")"
+  mkdir -p "$out"
+  [[ $SEED == 0 ]] || cp "onnx/models/$task/settings.json" "$out/settings.json"
   for f in denoiser.onnx discriminator.onnx prior.json train_report.json; do
-    cp "$WORK/models/$task/$f" "$out/$f"
+    cp "$(work_models "$task")/$f" "$out/$f"
   done
   echo "== quality $task"
   "$DIPS" model quality --task "$task" --models "$out" --data "$WORK/data/$task"
-  "$DIPS" model card --task "$task" --models "$out" --command "scripts/make-models.sh"
+  "$DIPS" model card --task "$task" --models "$out" --command "SEED=$SEED TASKS=$task scripts/make-models.sh"
 done
