@@ -1,5 +1,6 @@
 #!/usr/bin/env python3
-"""Summarise scripts/mujoco-tuning.sh's evaluations (dips-mujoco eval summary.json files) into
+"""Summarise scripts/mujoco-tuning.sh's evaluations (`dips eval --hand H` folders: each
+episode's result.json and wall.json) into
 one JSON (per episode and per task x hand x method) and print docs/mujoco.md's table.
 Usage: scripts/mujoco-tuning.py OUT_DIR RESULTS_JSON"""
 import json
@@ -9,11 +10,35 @@ from pathlib import Path
 
 out, dest = Path(sys.argv[1]), Path(sys.argv[2])
 rows, episodes = [], []
+
+
+def episodes_of(folder, method):
+    """The episodes of `method` in a `dips eval` folder, one dict each, by seed."""
+    eps = []
+    seeds = sorted((folder / "episodes" / method).glob("seed-*"), key=lambda p: int(p.name[5:]))
+    for d in seeds:
+        wall = json.loads((d / "wall.json").read_text())
+        r = json.loads((d / "result.json").read_text()) if (d / "result.json").exists() else {}
+        eps.append({
+            "method": method,
+            "seed": int(d.name[5:]),
+            "hand": r.get("hand", "world"),
+            "modes": r.get("modes", []),
+            "final_yaw": r.get("final_yaw"),
+            "final_distance_m": r.get("final_distance_m"),
+            "final_dy_m": r.get("final_dy_m"),
+            "valid": r.get("valid", False),
+            "success": r.get("success", False),
+            "seconds": wall["seconds"],
+            "error": wall.get("error"),
+        })
+    return eps
+
+
 for task in ["screwdriver", "card"]:
     for method in ["dips", "dips-sampled"]:
         for hand in ["mujoco", "world"]:
-            summary = json.loads((out / f"{task}-{hand}" / "summary.json").read_text())
-            eps = [e for e in summary["episodes"] if e["method"] == method]
+            eps = episodes_of(out / f"{task}-{hand}", method)
             assert all(e["seed"] < 1000 for e in eps), "tuning seeds only"
             assert all(e["hand"] == hand for e in eps if e["error"] is None), "hand recorded"
             episodes += [{"task": task, **e} for e in eps]
@@ -77,7 +102,7 @@ def diagnostics(hand):
 
 
 settings = {
-    "command": "scripts/mujoco-tuning.sh (dips-mujoco eval, both hands)",
+    "command": "scripts/mujoco-tuning.sh (dips eval --hand mujoco|world through dips-mujoco)",
     "seeds": "500..505 (tuning seeds; none >= 1000)",
     "screwdriver": "--max-modes 4, the task's node budget (13), sampler ddpm:16, time budget 300 s",
     "card": "5 modes, --node-budget 8, sampler ddpm:16, time budget 300 s",

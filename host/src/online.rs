@@ -430,7 +430,7 @@ pub fn run_online<H: Hand + ?Sized>(
     };
     // Scored on the true pose (a simulated tracker may be noisy); planned on the measured.
     let start = true_hand_state(hand);
-    let mut valid = pose_valid(scene, &hand.object_pose());
+    let mut valid = pose_valid(scene, &hand.true_object_pose());
     let mut runs = Vec::new();
     let mut executed: Vec<Mode> = Vec::new();
     let mut plans = Vec::new();

@@ -89,7 +89,7 @@ pub fn run_policy_episode<H: Hand + ?Sized>(
     let start = hand_state(hand);
     // Scored on the true pose (a simulated tracker may be noisy); run on the measured.
     let start_truth = true_hand_state(hand);
-    let mut valid = pose_valid(scene, &hand.object_pose());
+    let mut valid = pose_valid(scene, &hand.true_object_pose());
     let mut mode_runs = Vec::with_capacity(runs);
     let mut step_s = Vec::new();
     for r in 0..runs {
@@ -111,7 +111,7 @@ pub fn run_policy_episode<H: Hand + ?Sized>(
             }
             command_deltas(hand, &dq)?;
             let after = hand_state(hand);
-            let ok = pose_valid(scene, &hand.object_pose());
+            let ok = pose_valid(scene, &hand.true_object_pose());
             valid &= ok;
             let o = &after[nq..];
             progress(&format!(

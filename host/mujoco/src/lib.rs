@@ -6,7 +6,6 @@
 //! library is an error naming that script ([`locate`], [`check_version`]). See
 //! `docs/mujoco.md`.
 
-pub mod episode;
 pub mod hand;
 pub mod locate;
 pub mod run;

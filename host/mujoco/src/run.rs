@@ -1,10 +1,12 @@
-//! What the `dips-mujoco` binary runs: a commands file on either hand (`sim run`, the same
-//! input and trajectory shape as `dips sim run`), and the per-action timing of both hands on
-//! the same scripted targets (`bench`). The controller side sees only [`Hand`].
+//! The hands of the `dips-mujoco` binary ([`MujocoHands`]: our world and the MuJoCo hand,
+//! opened for `dips … --hand world|mujoco`), and what the tests run on either hand: a
+//! commands file ([`run_commands`], `dips sim run`'s trajectory shape), the scripted targets
+//! that `dips bench sim --hand mujoco` times, and CSVTO modes ([`run_csvto_modes`]). The
+//! controller side sees only [`Hand`].
 
 use std::time::Instant;
 
-use dips_world::hand::{Hand, HandError};
+use dips_world::hand::{Hand, HandError, HandOptions, Hands, open_world};
 use dips_world::kinematics::HandJoints;
 use dips_world::scenes::{SceneKind, card};
 use dips_world::world::{ContactReport, ObjectState, StepFlag, World, scripted};
@@ -12,22 +14,47 @@ use serde::{Deserialize, Serialize};
 
 use crate::{MujocoError, MujocoHand, MujocoParams, PoseNoise};
 
-/// Which hand executes the actions.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
-#[serde(rename_all = "kebab-case")]
-pub enum HandKind {
-    /// Our quasi-static world (`dips_world::world::World`).
-    World,
-    /// MuJoCo 3.17 with the 333 Hz host PD ([`MujocoHand`]).
-    Mujoco,
-}
+/// Which hand executes the actions: `dips_world`'s type (one owner), re-exported here.
+pub use dips_world::hand::HandKind;
 
-impl HandKind {
-    /// The name written to files.
-    pub fn name(self) -> &'static str {
-        match self {
-            HandKind::World => "world",
-            HandKind::Mujoco => "mujoco",
+/// The hands of the `dips-mujoco` binary: our world and the MuJoCo hand. Its `main` runs the
+/// `dips` command line with them (`dips_cli::main_with`), so `--hand mujoco` works on
+/// `dips episode`, `dips eval`, `dips sim run` and `dips bench sim`.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct MujocoHands;
+
+impl Hands for MujocoHands {
+    fn has(&self, _kind: HandKind) -> bool {
+        true
+    }
+
+    fn open(
+        &self,
+        kind: HandKind,
+        scene: SceneKind,
+        options: &HandOptions,
+    ) -> Result<Box<dyn Hand>, HandError> {
+        match kind {
+            HandKind::World => open_world(scene, options),
+            HandKind::Mujoco => {
+                let noise = options.noise.map(|n| PoseNoise {
+                    position: n.position,
+                    rotation: n.rotation,
+                    seed: options.seed,
+                });
+                let mut params = MujocoParams::for_scene(scene);
+                params.pose_noise = noise;
+                let hand = MujocoHand::with_params(
+                    scene,
+                    dips_world::kinematics::HandModel::allegro_v4(),
+                    params,
+                )
+                .map_err(|e| HandError::Other {
+                    hand: "MuJoCo",
+                    message: e.to_string(),
+                })?;
+                Ok(Box::new(hand))
+            }
         }
     }
 }
@@ -194,28 +221,6 @@ pub fn run_commands(hand: &mut AnyHand, kind: HandKind, dq: &[Vec<f64>]) -> Traj
     traj
 }
 
-/// Timing of one scenario on one hand.
-#[derive(Debug, Clone, Serialize)]
-pub struct HandTiming {
-    /// Scene name.
-    pub scene: String,
-    /// `hold` (targets = measured joints) or `manipulate` (pinch-and-turn / press-and-slide).
-    pub scenario: String,
-    /// `world` or `mujoco`.
-    pub hand: String,
-    /// Actions timed.
-    pub actions: usize,
-    /// Mean wall time per action (ms).
-    pub mean_ms: f64,
-    /// Median wall time per action (ms).
-    pub median_ms: f64,
-    /// Slowest action (ms).
-    pub max_ms: f64,
-    /// Mean change of the task coordinate (screwdriver yaw, rad; card y, m) over each run of
-    /// six actions.
-    pub mean_task_change: f64,
-}
-
 /// Measured joints plus a row of task-joint deltas (`docs/contracts.md` §2 order); a row too
 /// short leaves NaN, which the hand refuses.
 pub fn add_deltas(scene: SceneKind, mut q: HandJoints, dq: &[f64]) -> HandJoints {
@@ -249,53 +254,6 @@ pub fn scripted_targets(
         SceneKind::Card => scripted::card_push_action(plan, -0.008, 0.0),
     };
     Ok(add_deltas(scene, q, &dq))
-}
-
-/// Time `actions` actions (in runs of six from the start state) of each scene and scenario
-/// on both hands.
-pub fn bench(actions: usize) -> Result<Vec<HandTiming>, Box<dyn std::error::Error>> {
-    let mut out = Vec::new();
-    for scene in SceneKind::ALL {
-        for manipulate in [false, true] {
-            for kind in [HandKind::World, HandKind::Mujoco] {
-                let mut times = Vec::new();
-                let mut changes = Vec::new();
-                while times.len() < actions {
-                    let mut hand = AnyHand::new(kind, scene, None)?;
-                    let mut plan = World::new(scene);
-                    let c0 = hand.hand_ref().object_pose().coords;
-                    for k in 0..6 {
-                        if times.len() == actions {
-                            break;
-                        }
-                        let targets = scripted_targets(&mut plan, hand.hand_ref(), manipulate, k)?;
-                        let start = Instant::now();
-                        hand.hand().command(&targets)?;
-                        times.push(start.elapsed().as_secs_f64() * 1e3);
-                    }
-                    let c = hand.hand_ref().object_pose().coords;
-                    changes.push(match scene {
-                        SceneKind::Screwdriver => c[2] - c0[2],
-                        SceneKind::Card => c[1] - c0[1],
-                    });
-                }
-                let mean = times.iter().sum::<f64>() / times.len().max(1) as f64;
-                let max = times.iter().copied().fold(0.0, f64::max);
-                times.sort_by(f64::total_cmp);
-                out.push(HandTiming {
-                    scene: scene.name().into(),
-                    scenario: if manipulate { "manipulate" } else { "hold" }.into(),
-                    hand: kind.name().into(),
-                    actions: times.len(),
-                    mean_ms: mean,
-                    median_ms: times.get(times.len() / 2).copied().unwrap_or(0.0),
-                    max_ms: max,
-                    mean_task_change: changes.iter().sum::<f64>() / changes.len().max(1) as f64,
-                });
-            }
-        }
-    }
-    Ok(out)
 }
 
 /// One CSVTO mode executed closed-loop on a hand ([`dips_host::execute::run_mode`]: a

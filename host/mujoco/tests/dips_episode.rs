@@ -1,98 +1,211 @@
-//! A DIPS episode executed on the MuJoCo hand (release; scripts/mujoco-test.sh): the planner,
-//! the shipped models and CSVTO are `dips episode`'s, the hand is MuJoCo's, and `result.json`
-//! says so in its `hand` field; `dips-mujoco eval` resumes.
+//! `dips-mujoco` is the `dips` command line with the MuJoCo hand registered (release;
+//! scripts/mujoco-test.sh): `dips episode --hand mujoco` runs the planner, the shipped models
+//! and CSVTO of `dips episode` with the MuJoCo hand executing, and `result.json` says so in
+//! its `hand` field; `dips eval --hand mujoco` records the hand in `eval.json`; `dips sim run`
+//! and `dips bench sim` take `--hand mujoco`.
 
-use dips_host::online::{Method, OnlineSettings};
-use dips_host::planning::parse_sampler;
-use dips_mujoco::episode::{
-    EpisodeSpec, episode_dir, finished, run_episode, run_eval, write_episode,
-};
-use dips_mujoco::run::HandKind;
-use dips_world::scenes::SceneKind;
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
 
-/// One card mode, a two-node search, DDIM-8: a few seconds.
-fn short_card(hand: HandKind) -> EpisodeSpec {
-    EpisodeSpec {
-        task: SceneKind::Card,
-        method: Method::Dips,
-        seed: 500,
-        hand,
-        noise: None,
-        models: None,
-        threads: 1,
-        online: OnlineSettings {
-            time_budget_s: 60.0,
-            node_budget: Some(2),
-            sampler: parse_sampler("ddim:8").expect("sampler"),
-            max_modes: Some(1),
-            ..OnlineSettings::default()
-        },
-    }
-}
-
-fn scratch(name: &str) -> std::path::PathBuf {
+fn scratch(name: &str) -> PathBuf {
     let dir = std::env::temp_dir().join(format!("dips-mujoco-{name}-{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&dir);
     dir
 }
 
+fn dips_mujoco(args: &[&str], out: &Path) -> Output {
+    let o = Command::new(env!("CARGO_BIN_EXE_dips-mujoco"))
+        .args(args)
+        .arg("--out")
+        .arg(out)
+        .output()
+        .expect("run dips-mujoco");
+    assert!(
+        o.status.success(),
+        "dips-mujoco {args:?}: {}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    o
+}
+
+fn json(path: &Path) -> serde_json::Value {
+    serde_json::from_str(&std::fs::read_to_string(path).expect("read")).expect("JSON")
+}
+
+/// One card mode, a two-node search, DDIM-8, one model thread: a few seconds.
+const SHORT_CARD: [&str; 12] = [
+    "--task",
+    "card",
+    "--node-budget",
+    "2",
+    "--sampler",
+    "ddim:8",
+    "--max-modes",
+    "1",
+    "--time-budget-s",
+    "60",
+    "--hand",
+    "mujoco",
+];
+
 #[test]
 fn dips_card_episode_on_the_mujoco_hand_records_its_hand() {
     let dir = scratch("episode");
-    let result =
-        run_episode(&short_card(HandKind::Mujoco), &mut |l| eprintln!("{l}")).expect("episode");
-    assert_eq!(result.hand, "mujoco");
-    assert_eq!(result.modes.len(), 1, "one mode");
-    assert_eq!(result.plans.len(), 1, "one planning call");
-    write_episode(&dir, &result, false).expect("write");
-    let json: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(dir.join("result.json")).expect("read"))
-            .expect("JSON");
-    assert_eq!(json["hand"], "mujoco");
-    assert_eq!(json["method"], "dips");
+    let mut args = vec![
+        "episode",
+        "--method",
+        "dips",
+        "--seed",
+        "500",
+        "--threads",
+        "1",
+    ];
+    args.extend(SHORT_CARD);
+    dips_mujoco(&args, &dir);
+    let result = json(&dir.join("result.json"));
+    assert_eq!(result["hand"], "mujoco");
+    assert_eq!(result["method"], "dips");
+    assert_eq!(
+        result["modes"].as_array().map(Vec::len),
+        Some(1),
+        "one mode"
+    );
     assert!(
-        json["final_distance_m"]
+        result["final_distance_m"]
             .as_f64()
             .is_some_and(f64::is_finite)
     );
+    assert!(result.get("tracker_noise").is_none());
     assert!(dir.join("report.html").is_file(), "the report is written");
     eprintln!(
-        "card dips seed 500 on MuJoCo: {:?}, dy {:.2} cm, valid {}",
-        result.modes,
-        100.0 * result.final_dy_m.unwrap_or(f64::NAN),
-        result.valid
+        "card dips seed 500 on MuJoCo: {}, dy {:.2} cm, valid {}",
+        result["modes"],
+        100.0 * result["final_dy_m"].as_f64().unwrap_or(f64::NAN),
+        result["valid"]
     );
     let _ = std::fs::remove_dir_all(&dir);
 }
 
 #[test]
-fn eval_on_our_world_records_world_and_resumes() {
+fn csvto_episode_with_tracker_noise_records_it() {
+    let dir = scratch("noisy");
+    let mut args = vec![
+        "episode",
+        "--method",
+        "csvto-sampled",
+        "--modes",
+        "both",
+        "--noise-position",
+        "0.001",
+        "--noise-rotation",
+        "0.02",
+    ];
+    args.extend(SHORT_CARD);
+    dips_mujoco(&args, &dir);
+    let result = json(&dir.join("result.json"));
+    assert_eq!(result["hand"], "mujoco");
+    assert_eq!(result["tracker_noise"]["position"], 0.001);
+    assert_eq!(result["tracker_noise"]["rotation"], 0.02);
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn eval_records_the_hand_in_eval_json_and_resumes() {
     let dir = scratch("eval");
-    let mut base = short_card(HandKind::World);
-    base.online.sequence = None;
-    let seeds = [500];
-    let first = run_eval(&base, &[Method::Dips], &seeds, &dir, &mut |_| {}).expect("eval");
-    assert_eq!(first.len(), 1);
-    assert_eq!(first[0].hand, "world");
-    assert!(first[0].error.is_none(), "{:?}", first[0].error);
-    let ep = episode_dir(&dir, Method::Dips, 500);
-    assert!(finished(&ep));
+    let mut args = vec![
+        "eval",
+        "--methods",
+        "csvto-sampled",
+        "--first-seed",
+        "500",
+        "--trials",
+        "1",
+        "--jobs",
+        "1",
+        "--model-threads",
+        "1",
+        "--quiet",
+        "--animate",
+        "none",
+    ];
+    args.extend(SHORT_CARD);
+    dips_mujoco(&args, &dir);
+    assert_eq!(json(&dir.join("eval.json"))["episode"]["hand"], "mujoco");
+    let ep = dir.join("episodes/csvto-sampled/seed-500");
+    assert_eq!(json(&ep.join("result.json"))["hand"], "mujoco");
     let stamp = std::fs::metadata(ep.join("result.json"))
         .and_then(|m| m.modified())
         .expect("stamp");
-    let mut lines = Vec::new();
-    let again = run_eval(&base, &[Method::Dips], &seeds, &dir, &mut |l| {
-        lines.push(l.to_string())
-    })
-    .expect("resume");
-    assert_eq!(again.len(), 1);
-    assert!(
-        lines.iter().any(|l| l.contains("finished already")),
-        "{lines:?}"
+    // Run again: nothing to do; on our world: another hand, refused.
+    dips_mujoco(&args, &dir);
+    assert_eq!(
+        std::fs::metadata(ep.join("result.json"))
+            .and_then(|m| m.modified())
+            .expect("stamp"),
+        stamp
     );
-    let stamp2 = std::fs::metadata(ep.join("result.json"))
-        .and_then(|m| m.modified())
-        .expect("stamp");
-    assert_eq!(stamp, stamp2, "a finished episode is not run again");
+    let world: Vec<&str> = args
+        .iter()
+        .map(|a| if *a == "mujoco" { "world" } else { a })
+        .collect();
+    let o = Command::new(env!("CARGO_BIN_EXE_dips-mujoco"))
+        .args(&world)
+        .arg("--out")
+        .arg(&dir)
+        .output()
+        .expect("run");
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(!o.status.success() && err.contains("--hand"), "{err}");
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn sim_run_and_bench_sim_take_the_hand() {
+    let dir = scratch("sim");
+    let out = dir.join("traj.json");
+    let commands = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../../examples/card-commands.json"
+    );
+    let o = dips_mujoco(
+        &[
+            "sim",
+            "run",
+            "--scene",
+            "card",
+            "--commands",
+            commands,
+            "--hand",
+            "mujoco",
+        ],
+        &out,
+    );
+    let line: serde_json::Value = serde_json::from_slice(&o.stdout).expect("JSON line");
+    assert_eq!(line["hand"], "mujoco");
+    let traj = json(&out);
+    assert_eq!(traj["hand"], "mujoco");
+    assert!(traj["states"].as_array().is_some_and(|s| s.len() > 1));
+    let o = Command::new(env!("CARGO_BIN_EXE_dips-mujoco"))
+        .args([
+            "bench",
+            "sim",
+            "--hand",
+            "mujoco",
+            "--json",
+            "--actions",
+            "2",
+        ])
+        .output()
+        .expect("bench");
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let bench: serde_json::Value = serde_json::from_slice(&o.stdout).expect("JSON");
+    let rows = bench["scenarios"].as_array().expect("scenarios");
+    assert_eq!(rows.len(), 8, "2 scenes × 2 scenarios × 2 hands");
+    for hand in ["mujoco", "world"] {
+        assert!(
+            rows.iter()
+                .any(|r| r["hand"] == hand && r["p90_ms"].as_f64().is_some())
+        );
+    }
     let _ = std::fs::remove_dir_all(&dir);
 }

@@ -278,6 +278,10 @@ fn pose_noise_is_seeded_and_of_its_size() {
         assert_eq!(a.object_pose(), b.object_pose());
         assert_ne!(a.object_pose(), c.object_pose());
         assert_eq!(a.true_pose(), exact.true_pose());
+        // The scored pose is the true one, in task coordinates, noise or not.
+        assert_eq!(a.true_object_pose(), exact.object_pose());
+        assert_eq!(exact.true_object_pose(), exact.object_pose());
+        assert_ne!(a.true_object_pose(), a.object_pose());
         let d = a.object_pose().pose.translation.vector - a.true_pose().translation.vector;
         sq += d.norm_squared();
     }

@@ -425,7 +425,7 @@ pub fn run_episode_observed<H: Hand + ?Sized>(
     let mut rng = KernelRng::seed_from_u64(seed);
     let start = true_hand_state(hand);
     let mut runs = Vec::with_capacity(modes.len());
-    let mut valid = pose_valid(task, &hand.object_pose());
+    let mut valid = pose_valid(task, &hand.true_object_pose());
     let mut step_s = Vec::new();
     for (i, &mode) in modes.iter().enumerate() {
         progress(&format!("mode {}/{}: {}", i + 1, modes.len(), mode.name()));

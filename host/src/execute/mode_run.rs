@@ -343,7 +343,7 @@ pub fn run_mode_observed<H: Hand + ?Sized>(
                 problem.finger_sdf(i, &q, &o)
             })
             .collect::<Vec<_>>();
-        let valid = pose_valid(task, &hand.object_pose());
+        let valid = pose_valid(task, &hand.true_object_pose());
         // Fixed decimals without "-0.00".
         let f = |v: f64, d: usize| {
             let s = format!("{v:.d$}");
