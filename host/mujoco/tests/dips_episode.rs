@@ -162,6 +162,7 @@ fn eval_records_the_hand_in_eval_json_and_resumes() {
 #[test]
 fn sim_run_and_bench_sim_take_the_hand() {
     let dir = scratch("sim");
+    std::fs::create_dir_all(&dir).expect("scratch folder");
     let out = dir.join("traj.json");
     let commands = concat!(
         env!("CARGO_MANIFEST_DIR"),
