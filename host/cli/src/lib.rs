@@ -39,9 +39,10 @@ pub enum Command {
     Model(model::ModelArgs),
     /// Benchmarks that print JSON figures.
     Bench(bench::BenchArgs),
-    /// Quasi-static test world: run actions, draw scenes and trajectories.
+    /// Quasi-static test world (or `--hand mujoco`): run actions, draw scenes and trajectories.
     Sim(sim::SimArgs),
-    /// One closed-loop episode in the quasi-static world; writes DIR/result.json.
+    /// One closed-loop episode, executed on the quasi-static world or (`--hand mujoco`) the
+    /// MuJoCo hand; writes DIR/result.json.
     Episode(episode::EpisodeArgs),
     /// The paper's experiments: many episodes per method (resumable, sharded), then
     /// results.json, results.md and box plots.
