@@ -63,7 +63,13 @@ impl Command {
     pub fn hand(&self) -> Option<HandKind> {
         match self {
             Command::Episode(a) => Some(a.hand.kind()),
-            Command::Eval(a) => a.hand.hand,
+            // Without `--hand`, a protocol's hand (an unreadable protocol fails later, with
+            // its own message).
+            Command::Eval(a) => a.hand.hand.or_else(|| {
+                let file = a.protocol.as_deref()?;
+                let p = dips_eval::protocol::ProtocolFile::read(file).ok()?;
+                Some(p.protocol.eval.episode.hand)
+            }),
             Command::Sim(a) => match &a.command {
                 sim::SimCommand::Run(r) => Some(r.hand),
                 sim::SimCommand::Render(_) => None,

@@ -158,6 +158,78 @@ fn dips_mujoco_runs_with_the_same_arguments_and_exit_code() {
     let _ = std::fs::remove_dir_all(&dir);
 }
 
+/// A `dips-mujoco` stand-in in `dir` that exits 3 after writing its arguments to
+/// `dir/args.txt`.
+#[cfg(unix)]
+fn stand_in(dir: &Path) {
+    use std::os::unix::fs::PermissionsExt;
+    let script = format!(
+        "#!/bin/sh\nprintf '%s\\n' \"$@\" > '{}'\nexit 3\n",
+        dir.join("args.txt").display()
+    );
+    let path = dir.join("dips-mujoco");
+    std::fs::write(&path, script).unwrap();
+    std::fs::set_permissions(&path, std::fs::Permissions::from_mode(0o755)).unwrap();
+}
+
+#[cfg(unix)]
+#[test]
+fn a_protocol_of_the_mujoco_hand_runs_in_dips_mujoco() {
+    let (dir, exe) = lone_dips("protocol");
+    let file = dir.join("p.json");
+    let models = concat!(env!("CARGO_MANIFEST_DIR"), "/../../onnx/models/card");
+    let out = Command::new(&exe)
+        .args([
+            "eval",
+            "--task",
+            "card",
+            "--methods",
+            "csvto-sampled",
+            "--first-seed",
+        ])
+        .args([
+            "500",
+            "--trials",
+            "1",
+            "--models",
+            models,
+            "--write-protocol",
+        ])
+        .arg(&file)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let mut p: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&file).unwrap()).unwrap();
+    assert!(
+        p["eval"]["episode"].get("hand").is_none(),
+        "our world: absent"
+    );
+    p["eval"]["episode"]["hand"] = "mujoco".into();
+    std::fs::write(&file, serde_json::to_string_pretty(&p).unwrap()).unwrap();
+    stand_in(&dir);
+    let args = ["eval", "--protocol", "p.json", "--out", "x"];
+    let out = Command::new(&exe)
+        .current_dir(&dir)
+        .args(args)
+        .env("PATH", "")
+        .output()
+        .unwrap();
+    assert_eq!(
+        out.status.code(),
+        Some(3),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let passed = std::fs::read_to_string(dir.join("args.txt")).unwrap();
+    assert_eq!(passed, args.join("\n") + "\n");
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
 #[test]
 fn tracker_noise_on_our_world_is_refused() {
     let dir = scratch("noise");
