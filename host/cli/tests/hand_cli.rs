@@ -4,7 +4,41 @@
 //! MuJoCo is needed: the tests use a stand-in script.
 
 use std::path::{Path, PathBuf};
-use std::process::Command;
+use std::process::{Child, Command, Output};
+
+/// Spawning a binary this test process has just written can fail with "text file busy"
+/// (ETXTBSY) while another test thread's fork still holds the file's write descriptor
+/// between fork and exec; retry for up to a few seconds.
+trait BusySafe {
+    fn spawn_busy_safe(&mut self) -> Child;
+    fn output_busy_safe(&mut self) -> Output;
+}
+
+impl BusySafe for Command {
+    fn spawn_busy_safe(&mut self) -> Child {
+        for _ in 0..200 {
+            match self.spawn() {
+                Err(e) if e.kind() == std::io::ErrorKind::ExecutableFileBusy => {
+                    std::thread::sleep(std::time::Duration::from_millis(20))
+                }
+                r => return r.unwrap(),
+            }
+        }
+        self.spawn().unwrap()
+    }
+
+    fn output_busy_safe(&mut self) -> Output {
+        for _ in 0..200 {
+            match self.output() {
+                Err(e) if e.kind() == std::io::ErrorKind::ExecutableFileBusy => {
+                    std::thread::sleep(std::time::Duration::from_millis(20))
+                }
+                r => return r.unwrap(),
+            }
+        }
+        self.output().unwrap()
+    }
+}
 
 fn scratch(name: &str) -> PathBuf {
     let d = std::env::temp_dir().join(format!("dips-hand-{name}-{}", std::process::id()));
@@ -88,8 +122,7 @@ fn without_dips_mujoco_the_error_is_one_line() {
     let out = Command::new(&exe)
         .args(episode_args(&dir.join("ep")))
         .env("PATH", "")
-        .output()
-        .unwrap();
+        .output_busy_safe();
     assert_eq!(out.status.code(), Some(1));
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert_eq!(
@@ -136,8 +169,7 @@ fn dips_mujoco_runs_with_the_same_arguments_and_exit_code() {
             .stdin(std::process::Stdio::piped())
             .stdout(std::process::Stdio::piped())
             .stderr(std::process::Stdio::piped())
-            .spawn()
-            .unwrap();
+            .spawn_busy_safe();
         {
             use std::io::Write;
             child
@@ -196,8 +228,7 @@ fn a_protocol_of_the_mujoco_hand_runs_in_dips_mujoco() {
             "--write-protocol",
         ])
         .arg(&file)
-        .output()
-        .unwrap();
+        .output_busy_safe();
     assert!(
         out.status.success(),
         "{}",
@@ -217,8 +248,7 @@ fn a_protocol_of_the_mujoco_hand_runs_in_dips_mujoco() {
         .current_dir(&dir)
         .args(args)
         .env("PATH", "")
-        .output()
-        .unwrap();
+        .output_busy_safe();
     assert_eq!(
         out.status.code(),
         Some(3),
