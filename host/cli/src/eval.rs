@@ -310,7 +310,8 @@ pub fn run(args: EvalArgs, hands: &dyn Hands) -> anyhow::Result<()> {
         return write_protocol(file, args.protocol_name.as_deref(), &settings);
     }
     if let Some(p) = &protocol {
-        let registration = p.register(&settings, args.protocol_uncommitted)?;
+        let out = args.out.as_deref().context("--out DIR is required")?;
+        let registration = p.register_in(&settings, args.protocol_uncommitted, out)?;
         crate::note!(
             "protocol {} ({}): this run is labelled {}{}",
             p.protocol.name,

@@ -778,6 +778,47 @@ impl ProtocolFile {
     }
 }
 
+impl ProtocolFile {
+    /// [`ProtocolFile::register`] for a run writing into `out`: when the only registrations
+    /// that spent the range are `out`'s own, of this very protocol file and registered, the run
+    /// is that registered run resumed (its partial results were committed, e.g. at the end of
+    /// a working session) and stays registered; anything else is as `register` says.
+    pub fn register_in(
+        &self,
+        settings: &EvalSettings,
+        allow_uncommitted: bool,
+        out: &Path,
+    ) -> Result<Registration, ProtocolError> {
+        let mut r = self.register(settings, allow_uncommitted)?;
+        if r.status != RegistrationStatus::Rerun {
+            return Ok(r);
+        }
+        let Some(own) = read_registration(out)? else {
+            return Ok(r);
+        };
+        let ours =
+            own.protocol_sha256 == self.sha256 && own.status == RegistrationStatus::Registered;
+        let own_file = out.join(REGISTRATION_FILE);
+        let only_own = committed_registrations(&dir_of(&self.path))?
+            .into_iter()
+            .filter(|(_, c)| {
+                c.status != RegistrationStatus::Tuning
+                    && c.settings.episode.task == self.protocol.eval.episode.task
+                    && overlap(&c.settings, &self.protocol.eval)
+            })
+            .all(|(file, c)| {
+                c.protocol_sha256 == self.sha256
+                    && c.status == RegistrationStatus::Registered
+                    && own_file.ends_with(&file)
+            });
+        if ours && only_own {
+            r.status = RegistrationStatus::Registered;
+            r.spent_by.clear();
+        }
+        Ok(r)
+    }
+}
+
 /// Read `dir/registration.json` if present.
 pub fn read_registration(dir: &Path) -> Result<Option<Registration>, ProtocolError> {
     let path = dir.join(REGISTRATION_FILE);

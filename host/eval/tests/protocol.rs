@@ -390,6 +390,18 @@ fn a_committed_registration_spends_its_range_and_is_never_overwritten() {
     );
     commit_all(&dir, "card results");
 
+    // The registered run resumed in its own directory after a partial commit stays registered;
+    // anywhere else it is a rerun.
+    assert_eq!(
+        file.register_in(&s, false, &results).unwrap().status,
+        RegistrationStatus::Registered
+    );
+    assert_eq!(
+        file.register_in(&s, false, &dir.join("results/elsewhere"))
+            .unwrap()
+            .status,
+        RegistrationStatus::Rerun
+    );
     let again = file.register(&s, false).unwrap();
     assert_eq!(again.status, RegistrationStatus::Rerun);
     assert!(
