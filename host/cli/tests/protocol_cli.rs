@@ -150,12 +150,18 @@ fn a_protocol_is_written_refused_until_committed_and_registers_its_run() {
     let md = std::fs::read_to_string(repo.join("results/card/results.md")).unwrap();
     assert!(md.contains("**registered**"), "{md}");
 
-    // Committed, the results spend the range: a second run is a rerun, kept out of them.
+    // Committed, the results spend the range. The registered run resumed in its own
+    // directory (a session that committed partial results) stays registered and adds nothing
+    // that is done; anywhere else the same protocol is a rerun.
     git(&repo, &["add", "results/card/registration.json"]);
     git(&repo, &["commit", "-q", "-m", "card-10000 results"]);
     let (code, err) = run("results/card", &[]);
-    assert_eq!(code, Some(1), "{err}");
-    assert!(err.contains("holds the registered results"), "{err}");
+    assert_eq!(code, Some(0), "{err}");
+    assert!(err.contains("labelled registered"), "{err}");
+    assert!(err.contains("0 episodes run"), "{err}");
+    let (code, err) = run("results/card-again", &[]);
+    assert_eq!(code, Some(0), "{err}");
+    assert!(err.contains("labelled rerun"), "{err}");
 
     // A model whose hash is not the protocol's is named with both hashes (refused before any
     // model is loaded or any episode runs).
