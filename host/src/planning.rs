@@ -236,11 +236,7 @@ pub struct Models {
 pub fn planner_sample_name(config: &SamplerConfig, task: Task) -> String {
     let anchored =
         dips_kernel::session::start_anchor(task) != dips_kernel::adapters::StartAnchor::NONE;
-    if anchored {
-        format!("{}+anchor", config.method)
-    } else {
-        config.method.to_string()
-    }
+    dips_onnx::contract::psi_sample_name(&config.method, anchored)
 }
 
 /// Why a Ψ whose negatives came from `negatives` (`dips.psi_negatives`) must not score the

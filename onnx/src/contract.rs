@@ -18,6 +18,17 @@ pub const CONTRACT_VERSION: u32 = 1;
 /// before it existed have none ([`psi_negatives`]).
 pub const PSI_NEGATIVES_KEY: &str = "dips.psi_negatives";
 
+/// How [`PSI_NEGATIVES_KEY`] names the samples of `method`: the sampler's name as `--sampler`
+/// spells it, with `+anchor` when they were anchored at their starts as the planner anchors
+/// them (`dips_kernel::adapters::StartAnchor` other than `NONE`).
+pub fn psi_sample_name(method: &dips_kernel::diffusion::SamplingMethod, anchored: bool) -> String {
+    if anchored {
+        format!("{method}+anchor")
+    } else {
+        method.to_string()
+    }
+}
+
 /// The samplers a discriminator's negatives came from ([`PSI_NEGATIVES_KEY`]), `None` when the
 /// model does not say; an error when it says something that is not a JSON array of strings.
 pub fn psi_negatives(proto: &pb::ModelProto) -> Result<Option<Vec<String>>> {

@@ -739,11 +739,7 @@ impl ProtocolFile {
         } else {
             committed_registrations(&dir)?
                 .into_iter()
-                .filter(|(_, r)| {
-                    r.status != RegistrationStatus::Tuning
-                        && r.settings.episode.task == self.protocol.eval.episode.task
-                        && overlap(&r.settings, &self.protocol.eval)
-                })
+                .filter(|(_, r)| self.spent_by(r))
                 .map(|(file, r)| {
                     format!(
                         "{file} ({} of {}, seeds {}–{})",
@@ -779,6 +775,14 @@ impl ProtocolFile {
 }
 
 impl ProtocolFile {
+    /// Whether the committed registration `r` spends this protocol's range: the same task on
+    /// an overlapping seed range, anything but tuning.
+    fn spent_by(&self, r: &Registration) -> bool {
+        r.status != RegistrationStatus::Tuning
+            && r.settings.episode.task == self.protocol.eval.episode.task
+            && overlap(&r.settings, &self.protocol.eval)
+    }
+
     /// [`ProtocolFile::register`] for a run writing into `out`: when the only registrations
     /// that spent the range are `out`'s own, of this very protocol file and registered, the run
     /// is that registered run resumed (its partial results were committed, e.g. at the end of
@@ -801,11 +805,7 @@ impl ProtocolFile {
         let own_file = out.join(REGISTRATION_FILE);
         let only_own = committed_registrations(&dir_of(&self.path))?
             .into_iter()
-            .filter(|(_, c)| {
-                c.status != RegistrationStatus::Tuning
-                    && c.settings.episode.task == self.protocol.eval.episode.task
-                    && overlap(&c.settings, &self.protocol.eval)
-            })
+            .filter(|(_, c)| self.spent_by(c))
             .all(|(file, c)| {
                 c.protocol_sha256 == self.sha256
                     && c.status == RegistrationStatus::Registered

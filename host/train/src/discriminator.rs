@@ -273,89 +273,60 @@ struct FakeSource {
     anchor: StartAnchor,
 }
 
-/// The sources of Ψ's negatives: the paper's DDPM, then each DDIM count, then each of the
-/// planner's strided DDPM counts with the task's start anchor.
+/// The sources of Ψ's negatives: the paper's DDPM (cache tag empty: its key and file keep
+/// their first form), then each DDIM count, then each of the planner's strided DDPM counts
+/// with the task's start anchor.
 fn fake_sources(settings: &TrainSettings, task: Task) -> Vec<FakeSource> {
     let s = &settings.discriminator;
     let base = SamplerConfig {
         guidance_weight: s.guidance_weight,
         ..SamplerConfig::default()
     };
-    let mut v: Vec<FakeSource> = fake_samplers(settings)
-        .into_iter()
-        .map(|(tag, config)| FakeSource {
-            tag,
-            config,
-            anchor: StartAnchor::NONE,
-        })
-        .collect();
-    for &steps in &s.planner_fakes {
-        v.push(FakeSource {
-            tag: format!("planner-ddpm{steps}"),
-            config: SamplerConfig {
-                method: SamplingMethod::DdpmStrided {
-                    steps: u16::try_from(steps).unwrap_or(u16::MAX),
-                    noise_factor: s.noise_factor,
-                },
-                ..base
+    let steps_of = |k: usize| u16::try_from(k).unwrap_or(u16::MAX);
+    let source = |tag: String, method, anchor| FakeSource {
+        tag,
+        config: SamplerConfig { method, ..base },
+        anchor,
+    };
+    let mut v = vec![source(
+        String::new(),
+        SamplingMethod::Ddpm {
+            noise_factor: s.noise_factor,
+        },
+        StartAnchor::NONE,
+    )];
+    for &steps in &s.ddim_fakes {
+        v.push(source(
+            format!("ddim{steps}"),
+            SamplingMethod::Ddim {
+                steps: steps_of(steps),
+                eta: 0.0,
             },
-            anchor: dips_kernel::session::start_anchor(task),
-        });
+            StartAnchor::NONE,
+        ));
+    }
+    for &steps in &s.planner_fakes {
+        v.push(source(
+            format!("planner-ddpm{steps}"),
+            SamplingMethod::DdpmStrided {
+                steps: steps_of(steps),
+                noise_factor: s.noise_factor,
+            },
+            dips_kernel::session::start_anchor(task),
+        ));
     }
     v
 }
 
-/// The names of the samplers Ψ's negatives came from, as `--sampler` spells them, with
-/// `+anchor` where the samples were anchored at their starts as the planner anchors them:
+/// The names of the samplers Ψ's negatives came from ([`dips_onnx::contract::psi_sample_name`]):
 /// recorded in the discriminator's metadata (`dips.psi_negatives`).
 pub fn negative_samplers(settings: &TrainSettings, task: Task) -> Vec<String> {
     fake_sources(settings, task)
         .iter()
         .map(|f| {
-            let name = match f.config.method {
-                SamplingMethod::Ddpm { .. } => "ddpm".to_string(),
-                SamplingMethod::DdpmStrided { steps, .. } => format!("ddpm:{steps}"),
-                SamplingMethod::Ddim { steps, .. } => format!("ddim:{steps}"),
-            };
-            if f.anchor == StartAnchor::NONE {
-                name
-            } else {
-                format!("{name}+anchor")
-            }
+            dips_onnx::contract::psi_sample_name(&f.config.method, f.anchor != StartAnchor::NONE)
         })
         .collect()
-}
-
-/// The samplers whose trajectories are Ψ's negatives: the paper's DDPM, then each DDIM count,
-/// with the cache-key tag of each.
-fn fake_samplers(settings: &TrainSettings) -> Vec<(String, SamplerConfig)> {
-    let s = &settings.discriminator;
-    let base = SamplerConfig {
-        guidance_weight: s.guidance_weight,
-        ..SamplerConfig::default()
-    };
-    let mut v = vec![(
-        String::new(),
-        SamplerConfig {
-            method: SamplingMethod::Ddpm {
-                noise_factor: s.noise_factor,
-            },
-            ..base
-        },
-    )];
-    for &steps in &s.ddim_fakes {
-        v.push((
-            format!("ddim{steps}"),
-            SamplerConfig {
-                method: SamplingMethod::Ddim {
-                    steps: u16::try_from(steps).unwrap_or(u16::MAX),
-                    eta: 0.0,
-                },
-                ..base
-            },
-        ));
-    }
-    v
 }
 
 fn pairs(
