@@ -719,8 +719,8 @@ impl ProtocolFile {
     /// [`Protocol::check_models`]) and the file committed ([`check_committed`]; with
     /// `allow_uncommitted` an uncommitted file gives unregistered results). The status:
     /// tuning for seeds below [`FIRST_EVALUATION_SEED`], else unregistered when not committed,
-    /// else a rerun when a registration of the same task on an overlapping range is committed
-    /// in the protocol's repository, else registered.
+    /// else a rerun when a registration of the same task, hand and tracker noise on an
+    /// overlapping range is committed in the protocol's repository, else registered.
     pub fn register(
         &self,
         settings: &EvalSettings,
@@ -775,11 +775,18 @@ impl ProtocolFile {
 }
 
 impl ProtocolFile {
-    /// Whether the committed registration `r` spends this protocol's range: the same task on
-    /// an overlapping seed range, anything but tuning.
+    /// Whether the committed registration `r` spends this protocol's range: anything but
+    /// tuning, of the same task executed on the same hand with the same tracker noise, on an
+    /// overlapping seed range. A seed's outcome on one hand says nothing measured about
+    /// another hand's, so the arms of a transfer experiment (the same seeds on our world and
+    /// on MuJoCo, with and without tracker noise) are each registered
+    /// (`docs/results/PROTOCOL.md`).
     fn spent_by(&self, r: &Registration) -> bool {
+        let (mine, theirs) = (&self.protocol.eval.episode, &r.settings.episode);
         r.status != RegistrationStatus::Tuning
-            && r.settings.episode.task == self.protocol.eval.episode.task
+            && theirs.task == mine.task
+            && theirs.hand == mine.hand
+            && theirs.tracker_noise == mine.tracker_noise
             && overlap(&r.settings, &self.protocol.eval)
     }
 

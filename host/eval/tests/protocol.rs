@@ -13,6 +13,7 @@ use dips_eval::protocol::{
     claim_registration, sha256_bytes,
 };
 use dips_eval::settings::claim_dir;
+use dips_host::hand::{HandKind, TrackerNoise};
 use dips_host::online::{Method, OnlineSettings};
 use dips_host::planning::parse_sampler;
 use dips_host::scenes::SceneKind;
@@ -430,17 +431,57 @@ fn a_committed_registration_spends_its_range_and_is_never_overwritten() {
         ..settings(&models, vec![Method::Dips], 10000)
     };
     let disjoint = settings(&models, vec![Method::Dips], 10003);
+    // A transfer experiment's arms: the same seeds on another hand, or on the same hand with
+    // tracker noise, are registered; the same noisy arm again is a rerun.
+    let mujoco = EvalSettings {
+        hand: HandKind::Mujoco,
+        ..settings(&models, vec![Method::Dips], 10000)
+    };
+    let noisy = EvalSettings {
+        tracker_noise: Some(TrackerNoise {
+            position: 1e-3,
+            rotation: 0.02,
+        }),
+        ..mujoco.clone()
+    };
     for (name, s, status) in [
+        ("disjoint", &disjoint, RegistrationStatus::Registered),
         ("overlapping", &overlapping, RegistrationStatus::Rerun),
         ("other-task", &other_task, RegistrationStatus::Registered),
-        ("disjoint", &disjoint, RegistrationStatus::Registered),
+        ("mujoco", &mujoco, RegistrationStatus::Registered),
+        ("mujoco-noisy", &noisy, RegistrationStatus::Registered),
     ] {
         let p = dir.join(format!("protocols/{name}.json"));
         Protocol::new(name, s).unwrap().write(&p).unwrap();
         commit_all(&dir, name);
-        let r = ProtocolFile::read(&p).unwrap().register(s, false).unwrap();
+        let file = ProtocolFile::read(&p).unwrap();
+        let r = file.register(s, false).unwrap();
         assert_eq!(r.status, status, "{name}");
+        // Spend each range as a run does (its registration.json committed).
+        let out = dir.join(format!("results/{name}"));
+        let mut run = s.clone();
+        run.registration = Some(r);
+        claim_dir(&out, &run).unwrap();
+        commit_all(&dir, &format!("{name} results"));
     }
+    let p = dir.join("protocols/mujoco-noisy-again.json");
+    Protocol::new("mujoco-noisy-again", &noisy)
+        .unwrap()
+        .write(&p)
+        .unwrap();
+    commit_all(&dir, "noisy again");
+    let r = ProtocolFile::read(&p)
+        .unwrap()
+        .register(&noisy, false)
+        .unwrap();
+    assert_eq!(r.status, RegistrationStatus::Rerun);
+    assert!(
+        r.spent_by
+            .iter()
+            .all(|f| f.starts_with("results/mujoco-noisy/")),
+        "{:?}",
+        r.spent_by
+    );
 }
 
 #[test]

@@ -326,10 +326,13 @@ pub fn scene_xml(scene: SceneKind, hand: &HandModel, params: &MujocoParams) -> S
     let _ = writeln!(x, "  </worldbody>");
     // Only the task fingers' tips collide, as in our world; every pair with our friction.
     let _ = writeln!(x, "  <contact>");
+    // A `<pair>` takes its `solref` from the pair defaults, never from the geoms': it is
+    // written on every pair (without it MuJoCo's 0.02 s applied, not ours).
+    let timeconst = params.contact_timeconst;
     let mut pair = |g1: &str, g2: &str, mu: f64| {
         let _ = writeln!(
             x,
-            r#"    <pair geom1="{g1}" geom2="{g2}" condim="3" friction="{mu:?} {mu:?} 0.005 0.0001 0.0001"/>"#
+            r#"    <pair geom1="{g1}" geom2="{g2}" condim="3" friction="{mu:?} {mu:?} 0.005 0.0001 0.0001" solref="{timeconst:?} 1"/>"#
         );
     };
     for finger in scene.task_fingers() {
