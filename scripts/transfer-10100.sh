@@ -12,14 +12,25 @@ bin=target/release/dips-mujoco
 [[ -x $bin ]] || { echo "error: $bin is missing: run scripts/mujoco-test.sh first" >&2; exit 1; }
 arms=("$@")
 [[ ${#arms[@]} -gt 0 ]] || arms=(mujoco world mujoco-noisy)
+# The run's flags must resolve to the protocol's settings (the tool checks them).
+hand_flags() {
+    case $1 in
+        world) echo "--hand world" ;;
+        mujoco) echo "--hand mujoco" ;;
+        mujoco-noisy) echo "--hand mujoco --noise-position 0.001 --noise-rotation 0.02" ;;
+        *) echo "error: unknown arm $1 (world, mujoco, mujoco-noisy)" >&2; exit 2 ;;
+    esac
+}
 lane() {
     local task=$1 arm
+    shift
     for arm in "${arms[@]}"; do
+        # shellcheck disable=SC2046
         "$bin" eval --protocol "docs/results/protocols/$task-transfer-10100-$arm.json" \
             --out "docs/results/$task/transfer-10100-$arm" --jobs 1 --model-threads 1 \
-            --animate none --episode-reports medians
+            --animate none --episode-reports medians $(hand_flags "$arm") "$@"
     done
 }
-lane screwdriver &
-lane card &
+lane screwdriver --max-modes 4 &
+lane card --node-budget 8 &
 wait
