@@ -92,6 +92,9 @@ fn replay(path: &str) -> Result<(SceneKind, String, Vec<Step>), String> {
     Ok((scene, hand, steps))
 }
 
+/// A task's replayed files, the hands that recorded them, and their steps.
+type Replayed = (Vec<String>, Vec<String>, Vec<Step>);
+
 fn mean(v: impl Iterator<Item = f64>) -> f64 {
     let (s, n) = v.fold((0.0, 0usize), |(s, n), x| (s + x, n + 1));
     if n == 0 { f64::NAN } else { s / n as f64 }
@@ -120,8 +123,7 @@ fn main() -> ExitCode {
         eprintln!("usage: one_step_agreement OUT.json RESULT.json...");
         return ExitCode::from(2);
     }
-    let mut by_task: BTreeMap<&'static str, (Vec<String>, Vec<String>, Vec<Step>)> =
-        BTreeMap::new();
+    let mut by_task: BTreeMap<&'static str, Replayed> = BTreeMap::new();
     for path in &args[1..] {
         match replay(path) {
             Ok((scene, hand, steps)) => {
