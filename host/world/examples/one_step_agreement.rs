@@ -1,7 +1,8 @@
 //! One-step agreement of our world with a recorded episode (issue 37 item 5): every step of
 //! every mode of the given `result.json` files (from `dips episode`/`dips eval`, on any hand)
 //! is replayed on our world from the state the episode measured before it, with the command the
-//! episode sent (`dq`), and our world's next state is set beside the recorded one. Run on
+//! episode sent (`dq`), and our world's next state is set beside the recorded one (up to the
+//! step where the recording went invalid, that step included). Run on
 //! episodes executed by the MuJoCo hand, it says how far our world's one-step predictions are
 //! from MuJoCo's along the states MuJoCo actually visits.
 //!
@@ -58,6 +59,9 @@ fn replay(path: &str) -> Result<(SceneKind, String, Vec<Step>), String> {
     let a = scene.action_dim();
     let mut world = World::new(scene);
     let mut steps = Vec::new();
+    // Steps taken after the recording went invalid (a dropped screwdriver) are not replayed:
+    // neither world models what follows a drop.
+    let mut valid = true;
     let runs = r["mode_runs"]
         .as_array()
         .ok_or(format!("{path}: no mode_runs"))?;
@@ -67,6 +71,10 @@ fn replay(path: &str) -> Result<(SceneKind, String, Vec<Step>), String> {
         for step in run["steps"].as_array().ok_or("a mode without steps")? {
             let dq = numbers(&step["dq"], "dq")?;
             let after = numbers(&step["state"], "state")?;
+            if !valid {
+                break;
+            }
+            valid = step["valid"].as_bool().unwrap_or(true);
             world
                 .set_state(&before)
                 .map_err(|e| format!("{path}: {e}"))?;
