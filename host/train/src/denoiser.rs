@@ -2,7 +2,7 @@
 //! trajectories with context dropout; Adam; EMA; checkpoints; the held-out loss.
 
 use std::collections::HashMap;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::time::Instant;
 
 use burn::tensor::Device;
@@ -14,11 +14,12 @@ use serde::Serialize;
 use crate::data::{
     Normalizer, Samples, angle_columns, batch_indices, noise_batch, purpose, rotate_yaw, stream,
 };
-use crate::error::{Result, TrainError, io_err};
+use crate::error::{Result, TrainError};
 use crate::net::{Denoiser, NetDims, tensor};
-use crate::params::{Checkpoint, OptimState, ParamStore, to_vec};
-use crate::progress::{RunClock, RunOptions, bar};
+use crate::params::{ParamStore, to_vec};
+use crate::progress::RunOptions;
 use crate::settings::TrainSettings;
+use crate::stage::{self, Ema, Stage, checkpoint_dir, fingerprint};
 
 /// Figures of a denoiser training run (`train_report.json`).
 #[derive(Debug, Clone, Serialize, PartialEq)]
@@ -117,50 +118,6 @@ pub fn net_dims(dims: SegmentDims) -> NetDims {
 pub(crate) fn min_snr_weight(alpha_bar: f32, gamma: f32) -> f32 {
     let snr = alpha_bar / (1.0 - alpha_bar).max(f32::MIN_POSITIVE);
     if snr <= gamma { 1.0 } else { gamma / snr }
-}
-
-/// A fingerprint of training data (FNV-1a over the float bits), stored in checkpoints.
-pub(crate) fn fingerprint(parts: &[&[f32]]) -> String {
-    let mut h: u64 = 0xcbf2_9ce4_8422_2325;
-    for p in parts {
-        for v in *p {
-            for b in v.to_bits().to_le_bytes() {
-                h ^= u64::from(b);
-                h = h.wrapping_mul(0x100_0000_01b3);
-            }
-        }
-    }
-    format!("{h:016x}")
-}
-
-/// Load a checkpoint if one exists and belongs to this run; `None` to start fresh.
-pub(crate) fn resume(
-    path: &Path,
-    template: &ParamStore,
-    meta: &HashMap<String, String>,
-    opts: &RunOptions,
-) -> Result<Option<Checkpoint>> {
-    if opts.fresh || !path.exists() {
-        return Ok(None);
-    }
-    let ck = Checkpoint::load(path, template)?;
-    for (k, v) in meta {
-        if ck.meta.get(k) != Some(v) {
-            return Err(TrainError::Checkpoint {
-                path: path.to_path_buf(),
-                reason: format!(
-                    "its {k} differs from this run's (delete it, or pass `fresh`, to start over)"
-                ),
-            });
-        }
-    }
-    Ok(Some(ck))
-}
-
-pub(crate) fn checkpoint_dir(out_dir: &Path) -> Result<PathBuf> {
-    let d = out_dir.join("checkpoints");
-    std::fs::create_dir_all(&d).map_err(io_err(&d))?;
-    Ok(d)
 }
 
 /// The split's samples; errors when there is nothing to train on.
@@ -282,37 +239,37 @@ pub fn train_denoiser(
         None => None,
     };
 
-    let ck_path = checkpoint_dir(out_dir)?.join("denoiser.safetensors");
     let meta = HashMap::from([
         ("settings".to_string(), settings.denoiser_key()),
         ("task".to_string(), task.name().to_string()),
         ("data".to_string(), fingerprint(&[&train.x, &train.context])),
     ]);
-    let mut optim = OptimState::new(&params);
-    let mut clock = RunClock::start(started, None);
-    if let Some(ck) = resume(&ck_path, &params, &meta, opts)? {
-        clock = RunClock::start(started, Some(&ck.meta));
-        params = ck.params;
-        optim = ck.optim;
-    }
-    let resumed_from = optim.step;
+    let stage = Stage {
+        name: "denoiser",
+        loss_name: "loss",
+        steps: s.steps,
+        lr: s.lr,
+        ema: Some(Ema {
+            decay: s.ema_decay,
+            every: s.ema_every,
+            warmup: settings.ema_warmup(),
+        }),
+        checkpoint: checkpoint_dir(out_dir)?.join("denoiser.safetensors"),
+        checkpoint_every: settings.checkpoint_every,
+        meta,
+        started,
+        opts,
+    };
 
     let yaw = if s.augment_yaw && task == Task::Screwdriver {
         angle_columns(task).first().copied()
     } else {
         None
     };
-    let dev = Device::flex().autodiff();
     let (td, f, d) = (dims.floats(), dims.fingers, dims.dim());
-    let warmup = settings.ema_warmup();
     let object_cols = task.layout().object()..task.layout().state_dim();
-    let pb = bar(opts, s.steps as u64, "denoiser");
-    pb.set_position(optim.step as u64);
     let mut order_cache = None;
-    let mut recent: Vec<f32> = Vec::new();
-    clock.loop_started();
-    while optim.step < s.steps {
-        let step = optim.step;
+    let trained = stage::train(stage, params, |step, p, dev| {
         let mut rng = stream(settings.seed, purpose::STEP, step as u64);
         let idx = batch_indices(
             settings.seed,
@@ -345,7 +302,6 @@ pub fn train_denoiser(
             &mut rng,
         );
         if let Some(gamma) = s.min_snr_gamma {
-            let td = dims.floats();
             for (w, &t) in nb.weight.chunks_exact_mut(td).zip(&nb.t) {
                 let scale = min_snr_weight(alpha_bar[t as usize], gamma);
                 w.iter_mut().for_each(|v| *v *= scale);
@@ -359,57 +315,24 @@ pub fn train_denoiser(
             }
         }
         let wsum: f32 = nb.weight.iter().sum();
-
-        let p = params.tensors(&dev, true);
         let b = s.batch;
         let pred = net.fwd(
-            &p,
-            tensor(nb.x_t, [b, dims.horizon, d], &dev),
-            tensor(nb.t, [b], &dev),
-            tensor(nb.context, [b, f], &dev),
-            tensor(nb.cond_mask, [b], &dev),
+            p,
+            tensor(nb.x_t, [b, dims.horizon, d], dev),
+            tensor(nb.t, [b], dev),
+            tensor(nb.context, [b, f], dev),
+            tensor(nb.cond_mask, [b], dev),
         );
-        let diff = pred - tensor(nb.eps, [b, dims.horizon, d], &dev);
-        let loss = (diff.powi_scalar(2) * tensor(nb.weight, [b, dims.horizon, d], &dev))
-            .sum()
-            .div_scalar(wsum.max(1.0));
-        let grads = loss.backward();
-        let lv = to_vec(loss.detach())?.first().copied().unwrap_or(f32::NAN);
-        if !lv.is_finite() {
-            return Err(TrainError::Diverged { step, loss: lv });
-        }
-        let g: Vec<Option<Vec<f32>>> = p
-            .iter()
-            .map(|t| t.grad(&grads).map(to_vec).transpose())
-            .collect::<Result<_>>()?;
-        optim.adam(&mut params, &g, s.lr);
-        optim.ema_update(&params, s.ema_decay, s.ema_every, warmup);
-        recent.push(lv);
-        if recent.len() > 100 {
-            recent.remove(0);
-        }
-        pb.set_position(optim.step as u64);
-        pb.set_message(format!("loss {lv:.4}"));
-        let done = optim.step == s.steps;
-        let every = settings.checkpoint_every;
-        let stop = opts.stop_after == Some(optim.step);
-        if done || stop || (every > 0 && optim.step.is_multiple_of(every)) {
-            Checkpoint {
-                params: params.clone(),
-                optim: optim.clone(),
-                meta: clock.stamp(&meta, &recent),
-            }
-            .save(&ck_path)?;
-        }
-        if stop && !done {
-            pb.finish_and_clear();
-            return Err(TrainError::Stopped { step: optim.step });
-        }
-    }
-    pb.finish_and_clear();
-    let step_time_s = clock.loop_seconds() / s.steps.max(1) as f64;
+        let diff = pred - tensor(nb.eps, [b, dims.horizon, d], dev);
+        Ok(
+            (diff.powi_scalar(2) * tensor(nb.weight, [b, dims.horizon, d], dev))
+                .sum()
+                .div_scalar(wsum.max(1.0)),
+        )
+    })?;
+    let params = trained.params;
     let ema = ParamStore {
-        data: optim.ema.clone(),
+        data: trained.optim.ema,
         ..params.clone()
     };
     let (held_out_loss, held_out_loss_raw) = match &eval {
@@ -425,13 +348,13 @@ pub fn train_denoiser(
         held_out_samples: held.n,
         steps: s.steps,
         epochs: (s.steps * s.batch) as f64 / train.n as f64,
-        resumed_from,
+        resumed_from: trained.resumed_from,
         held_out_loss_initial: initial,
         held_out_loss_raw,
         held_out_loss,
-        train_loss_final: clock.train_loss(&recent),
-        step_time_s,
-        seconds: clock.run_seconds(),
+        train_loss_final: trained.train_loss_final,
+        step_time_s: trained.step_time_s,
+        seconds: trained.clock.run_seconds(),
     };
     Ok(TrainedDenoiser {
         task,

@@ -31,14 +31,13 @@ use safetensors::{Dtype, SafeTensors, tensor::TensorView};
 use serde::Serialize;
 
 use crate::data::{Normalizer, Samples, angle_columns, batch_indices, purpose, rotate_yaw, stream};
-use crate::denoiser::{
-    TrainedDenoiser, checkpoint_dir, fingerprint, net_dims, resume, split_samples,
-};
+use crate::denoiser::{TrainedDenoiser, net_dims, split_samples};
 use crate::error::{Result, TrainError, io_err};
 use crate::net::{Discriminator, tensor};
-use crate::params::{Checkpoint, OptimState, ParamStore, to_vec};
-use crate::progress::{RunClock, RunOptions, bar};
+use crate::params::{ParamStore, to_vec};
+use crate::progress::{RunOptions, bar};
 use crate::settings::TrainSettings;
+use crate::stage::{self, Stage, checkpoint_dir, fingerprint};
 
 /// Trajectories per sampler call (each step evaluates twice as many: guidance).
 const SAMPLER_CHUNK: usize = 96;
@@ -542,7 +541,6 @@ pub fn train_discriminator(
         &settings.net,
         &mut stream(settings.seed, purpose::INIT_DISCRIMINATOR, 0),
     );
-    let ck_path = ckd.join("discriminator.safetensors");
     let meta = HashMap::from([
         (
             "settings".to_string(),
@@ -554,16 +552,19 @@ pub fn train_discriminator(
             fingerprint(&[&tp.real, &tp.fake, &tp.context]),
         ),
     ]);
-    let mut optim = OptimState::new(&params);
-    let mut clock = RunClock::start(started, None);
-    if let Some(ck) = resume(&ck_path, &params, &meta, opts)? {
-        clock = RunClock::start(started, Some(&ck.meta));
-        params = ck.params;
-        optim = ck.optim;
-    }
-    let resumed_from = optim.step;
+    let stage = Stage {
+        name: "discriminator",
+        loss_name: "bce",
+        steps: s.steps,
+        lr: s.lr,
+        ema: None,
+        checkpoint: ckd.join("discriminator.safetensors"),
+        checkpoint_every: settings.checkpoint_every,
+        meta,
+        started,
+        opts,
+    };
 
-    let dev = Device::flex().autodiff();
     let (td, f) = (dims.floats(), dims.fingers);
     let mut alpha_bar = vec![0f32; denoiser.diffusion_steps];
     fill_alpha_bar(denoiser.diffusion_steps, &mut alpha_bar);
@@ -571,13 +572,8 @@ pub fn train_discriminator(
     let b = 2 * half;
     let mut labels = vec![1.0f32; half];
     labels.extend(vec![0.0f32; half]);
-    let pb = bar(opts, s.steps as u64, "discriminator");
-    pb.set_position(optim.step as u64);
     let mut cache = None;
-    let mut recent = Vec::new();
-    clock.loop_started();
-    while optim.step < s.steps {
-        let step = optim.step;
+    let trained = stage::train(stage, params, |step, p, dev| {
         let idx = batch_indices(
             settings.seed,
             purpose::DISC_ORDER,
@@ -618,49 +614,16 @@ pub fn train_discriminator(
         } else {
             vec![1.0; b]
         };
-        let p = params.tensors(&dev, true);
         let z = net.logit(
-            &p,
-            tensor(x, [b, dims.horizon, dims.dim()], &dev),
-            tensor(c, [b, f], &dev),
+            p,
+            tensor(x, [b, dims.horizon, dims.dim()], dev),
+            tensor(c, [b, f], dev),
         );
-        let y = tensor(labels.clone(), [b, 1], &dev);
-        let w = tensor(w, [b, 1], &dev);
-        let loss = ((softplus(z.clone(), 1.0) - z * y) * w).mean();
-        let grads = loss.backward();
-        let lv = to_vec(loss.detach())?.first().copied().unwrap_or(f32::NAN);
-        if !lv.is_finite() {
-            return Err(TrainError::Diverged { step, loss: lv });
-        }
-        let g: Vec<Option<Vec<f32>>> = p
-            .iter()
-            .map(|t| t.grad(&grads).map(to_vec).transpose())
-            .collect::<Result<_>>()?;
-        optim.adam(&mut params, &g, s.lr);
-        recent.push(lv);
-        if recent.len() > 100 {
-            recent.remove(0);
-        }
-        pb.set_position(optim.step as u64);
-        pb.set_message(format!("bce {lv:.4}"));
-        let done = optim.step == s.steps;
-        let every = settings.checkpoint_every;
-        let stop = opts.stop_after == Some(optim.step);
-        if done || stop || (every > 0 && optim.step.is_multiple_of(every)) {
-            Checkpoint {
-                params: params.clone(),
-                optim: optim.clone(),
-                meta: clock.stamp(&meta, &recent),
-            }
-            .save(&ck_path)?;
-        }
-        if stop && !done {
-            pb.finish_and_clear();
-            return Err(TrainError::Stopped { step: optim.step });
-        }
-    }
-    pb.finish_and_clear();
-    let step_time_s = clock.loop_seconds() / s.steps.max(1) as f64;
+        let y = tensor(labels.clone(), [b, 1], dev);
+        let w = tensor(w, [b, 1], dev);
+        Ok(((softplus(z.clone(), 1.0) - z * y) * w).mean())
+    })?;
+    let params = trained.params;
     let (tr, tf, _) = evaluate(&net, &params, &tp, dims)?;
     let (held_out_loss, held_out_accuracy, held_out_auc) = match &ep {
         Some(ep) => {
@@ -674,15 +637,15 @@ pub fn train_discriminator(
         train_pairs: tp.n,
         eval_pairs: ep.as_ref().map_or(0, |p| p.n),
         steps: s.steps,
-        resumed_from,
+        resumed_from: trained.resumed_from,
         sampling_s,
-        train_loss_final: clock.train_loss(&recent),
+        train_loss_final: trained.train_loss_final,
         held_out_loss,
         held_out_accuracy,
         held_out_auc,
         train_accuracy: accuracy(&tr, &tf),
-        step_time_s,
-        seconds: clock.run_seconds(),
+        step_time_s: trained.step_time_s,
+        seconds: trained.clock.run_seconds(),
     };
     Ok(TrainedDiscriminator {
         task,

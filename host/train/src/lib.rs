@@ -21,6 +21,7 @@ pub mod net;
 pub mod params;
 pub mod progress;
 pub mod settings;
+mod stage;
 pub mod synthetic;
 
 use std::path::{Path, PathBuf};
