@@ -719,8 +719,8 @@ impl ProtocolFile {
     /// [`Protocol::check_models`]) and the file committed ([`check_committed`]; with
     /// `allow_uncommitted` an uncommitted file gives unregistered results). The status:
     /// tuning for seeds below [`FIRST_EVALUATION_SEED`], else unregistered when not committed,
-    /// else a rerun when a registration of the same task, hand and tracker noise on an
-    /// overlapping range is committed in the protocol's repository, else registered.
+    /// else a rerun when a registration of the same task on an overlapping range, run after
+    /// this protocol was committed, is committed in the protocol's repository, else registered.
     pub fn register(
         &self,
         settings: &EvalSettings,
@@ -734,23 +734,21 @@ impl ProtocolFile {
             Err(e) => return Err(e),
         };
         let dir = dir_of(&self.path);
-        let spent_by: Vec<String> = if self.protocol.tuning() {
-            Vec::new()
-        } else {
-            committed_registrations(&dir)?
-                .into_iter()
-                .filter(|(_, r)| self.spent_by(r))
-                .map(|(file, r)| {
-                    format!(
+        let mut spent_by = Vec::new();
+        if !self.protocol.tuning() {
+            let registered_at = self.registered_at()?;
+            for (file, r) in committed_registrations(&dir)? {
+                if self.spent_by(&r, registered_at.as_deref())? {
+                    spent_by.push(format!(
                         "{file} ({} of {}, seeds {}–{})",
                         r.status.name(),
                         r.name,
                         r.settings.first_seed,
                         r.settings.first_seed + r.settings.trials.saturating_sub(1) as u64
-                    )
-                })
-                .collect()
-        };
+                    ));
+                }
+            }
+        }
         let status = if self.protocol.tuning() {
             RegistrationStatus::Tuning
         } else if !committed {
@@ -776,18 +774,53 @@ impl ProtocolFile {
 
 impl ProtocolFile {
     /// Whether the committed registration `r` spends this protocol's range: anything but
-    /// tuning, of the same task executed on the same hand with the same tracker noise, on an
-    /// overlapping seed range. A seed's outcome on one hand says nothing measured about
-    /// another hand's, so the arms of a transfer experiment (the same seeds on our world and
-    /// on MuJoCo, with and without tracker noise) are each registered
-    /// (`docs/results/PROTOCOL.md`).
-    fn spent_by(&self, r: &Registration) -> bool {
-        let (mine, theirs) = (&self.protocol.eval.episode, &r.settings.episode);
-        r.status != RegistrationStatus::Tuning
-            && theirs.task == mine.task
-            && theirs.hand == mine.hand
-            && theirs.tracker_noise == mine.tracker_noise
-            && overlap(&r.settings, &self.protocol.eval)
+    /// tuning, of the same task on an overlapping seed range, whose run started after this
+    /// protocol was committed in its present form (`registered_at`, the last commit that
+    /// touched the file; `None` outside a repository), or of this very protocol. Another
+    /// protocol committed before `r`'s first episode was fixed before any of `r`'s outcomes
+    /// could be seen: the arms of one experiment registered together (a transfer experiment's
+    /// hands, several trained models) share their seeds (`docs/results/PROTOCOL.md`).
+    fn spent_by(
+        &self,
+        r: &Registration,
+        registered_at: Option<&str>,
+    ) -> Result<bool, ProtocolError> {
+        if r.status == RegistrationStatus::Tuning
+            || r.settings.episode.task != self.protocol.eval.episode.task
+            || !overlap(&r.settings, &self.protocol.eval)
+        {
+            return Ok(false);
+        }
+        // The same protocol run again is a rerun wherever it runs (a resume in the
+        // registered run's own directory is `register_in`'s case).
+        if r.protocol_sha256 == self.sha256 {
+            return Ok(true);
+        }
+        let (Some(mine), Some(theirs)) = (registered_at, r.stamp.commit.as_deref()) else {
+            return Ok(true);
+        };
+        let before = git(
+            &dir_of(&self.path),
+            &["merge-base", "--is-ancestor", mine, theirs],
+        )?
+        .is_some();
+        Ok(!before)
+    }
+
+    /// The last commit that touched this protocol file (`None` outside a repository or when
+    /// it is not committed).
+    fn registered_at(&self) -> Result<Option<String>, ProtocolError> {
+        let name = self
+            .path
+            .file_name()
+            .map(|n| n.to_string_lossy().into_owned())
+            .unwrap_or_default();
+        Ok(git(
+            &dir_of(&self.path),
+            &["log", "-1", "--format=%H", "--", &name],
+        )?
+        .map(trimmed)
+        .filter(|c| !c.is_empty()))
     }
 
     /// [`ProtocolFile::register`] for a run writing into `out`: when the only registrations
@@ -810,14 +843,15 @@ impl ProtocolFile {
         let ours =
             own.protocol_sha256 == self.sha256 && own.status == RegistrationStatus::Registered;
         let own_file = out.join(REGISTRATION_FILE);
-        let only_own = committed_registrations(&dir_of(&self.path))?
-            .into_iter()
-            .filter(|(_, c)| self.spent_by(c))
-            .all(|(file, c)| {
-                c.protocol_sha256 == self.sha256
+        let registered_at = self.registered_at()?;
+        let mut only_own = true;
+        for (file, c) in committed_registrations(&dir_of(&self.path))? {
+            if self.spent_by(&c, registered_at.as_deref())? {
+                only_own &= c.protocol_sha256 == self.sha256
                     && c.status == RegistrationStatus::Registered
-                    && own_file.ends_with(&file)
-            });
+                    && own_file.ends_with(&file);
+            }
+        }
         if ours && only_own {
             r.status = RegistrationStatus::Registered;
             r.spent_by.clear();
@@ -848,7 +882,8 @@ pub fn write_registration(dir: &Path, registration: &Registration) -> Result<(),
             source,
         }
     })?;
-    dips_batch::record::write_atomic(&path, text.as_bytes()).map_err(ProtocolError::Write)
+    dips_fs::write_atomic(&path, text.as_bytes())
+        .map_err(|source| ProtocolError::Io { path, source })
 }
 
 /// A registration's one-line description (`the registered results of protocol card-10000`).

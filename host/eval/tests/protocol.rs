@@ -17,6 +17,7 @@ use dips_host::hand::{HandKind, TrackerNoise};
 use dips_host::online::{Method, OnlineSettings};
 use dips_host::planning::parse_sampler;
 use dips_host::scenes::SceneKind;
+use dips_kernel::search::SearchOverrides;
 use dips_onnx::EngineKind;
 
 fn scratch(name: &str) -> PathBuf {
@@ -50,14 +51,15 @@ fn settings(models: &Path, methods: Vec<Method>, first_seed: u64) -> EvalSetting
         shard: Shard::ALL,
         jobs: 1,
         model_threads: 1,
-        sampler: "ddim:8".into(),
         online: OnlineSettings {
             time_budget_s: 60.0,
-            node_budget: Some(3),
+            search: SearchOverrides {
+                node_budget: Some(3),
+                ..SearchOverrides::default()
+            },
             sampler: parse_sampler("ddim:8").unwrap(),
             sequence: None,
             max_modes: Some(1),
-            cost_to_come: None,
             search_depth: None,
         },
         models: models.to_path_buf(),
@@ -152,7 +154,7 @@ fn a_differing_setting_is_refused_with_its_name() {
     let protocol = Protocol::new("p", &s).unwrap();
 
     let mut other = settings(&models, vec![Method::Dips], 10000);
-    other.sampler = "ddpm:16".into();
+    other.online.sampler = parse_sampler("ddpm:16").unwrap();
     let err = protocol.check_settings(&other).unwrap_err();
     assert!(
         matches!(&err, ProtocolError::Differs { setting, protocol, run }
@@ -165,7 +167,7 @@ fn a_differing_setting_is_refused_with_its_name() {
     );
 
     let mut other = settings(&models, vec![Method::Dips], 10000);
-    other.online.node_budget = Some(4);
+    other.online.search.node_budget = Some(4);
     let err = protocol.check_settings(&other).unwrap_err().to_string();
     assert_eq!(err, "--node-budget is 3 in the protocol and 4 in this run");
 
@@ -431,54 +433,68 @@ fn a_committed_registration_spends_its_range_and_is_never_overwritten() {
         ..settings(&models, vec![Method::Dips], 10000)
     };
     let disjoint = settings(&models, vec![Method::Dips], 10003);
-    // A transfer experiment's arms: the same seeds on another hand, or on the same hand with
-    // tracker noise, are registered; the same noisy arm again is a rerun.
-    let mujoco = EvalSettings {
-        hand: HandKind::Mujoco,
-        ..settings(&models, vec![Method::Dips], 10000)
-    };
-    let noisy = EvalSettings {
-        tracker_noise: Some(TrackerNoise {
-            position: 1e-3,
-            rotation: 0.02,
-        }),
-        ..mujoco.clone()
-    };
     for (name, s, status) in [
         ("disjoint", &disjoint, RegistrationStatus::Registered),
         ("overlapping", &overlapping, RegistrationStatus::Rerun),
         ("other-task", &other_task, RegistrationStatus::Registered),
-        ("mujoco", &mujoco, RegistrationStatus::Registered),
-        ("mujoco-noisy", &noisy, RegistrationStatus::Registered),
     ] {
         let p = dir.join(format!("protocols/{name}.json"));
         Protocol::new(name, s).unwrap().write(&p).unwrap();
         commit_all(&dir, name);
-        let file = ProtocolFile::read(&p).unwrap();
-        let r = file.register(s, false).unwrap();
+        let r = ProtocolFile::read(&p).unwrap().register(s, false).unwrap();
         assert_eq!(r.status, status, "{name}");
-        // Spend each range as a run does (its registration.json committed).
-        let out = dir.join(format!("results/{name}"));
+    }
+
+    // The arms of one experiment, registered in one commit before either ran (here the same
+    // seeds on our world and on MuJoCo with tracker noise), share their seeds: the second is
+    // registered after the first's results are committed. A protocol committed after those
+    // results is a rerun, spent by the arm whose outcomes could be seen when it was written.
+    let arm = |hand, tracker_noise| EvalSettings {
+        hand,
+        tracker_noise,
+        ..settings(&models, vec![Method::Dips], 10100)
+    };
+    let noise = Some(TrackerNoise {
+        position: 1e-3,
+        rotation: 0.02,
+    });
+    let arms = [
+        ("arm-world", arm(HandKind::World, None)),
+        ("arm-mujoco-noisy", arm(HandKind::Mujoco, noise)),
+    ];
+    for (name, s) in &arms {
+        Protocol::new(name, s)
+            .unwrap()
+            .write(&dir.join(format!("protocols/{name}.json")))
+            .unwrap();
+    }
+    commit_all(&dir, "register both arms");
+    let late = dir.join("protocols/arm-late.json");
+    for (name, s) in &arms {
+        let file = ProtocolFile::read(&dir.join(format!("protocols/{name}.json"))).unwrap();
+        let r = file.register(s, false).unwrap();
+        assert_eq!(r.status, RegistrationStatus::Registered, "{name}");
         let mut run = s.clone();
         run.registration = Some(r);
-        claim_dir(&out, &run).unwrap();
+        claim_dir(&dir.join(format!("results/{name}")), &run).unwrap();
         commit_all(&dir, &format!("{name} results"));
+        if *name == "arm-world" {
+            Protocol::new("arm-late", &arms[1].1)
+                .unwrap()
+                .write(&late)
+                .unwrap();
+            commit_all(&dir, "a protocol registered after the first arm ran");
+        }
     }
-    let p = dir.join("protocols/mujoco-noisy-again.json");
-    Protocol::new("mujoco-noisy-again", &noisy)
+    let r = ProtocolFile::read(&late)
         .unwrap()
-        .write(&p)
+        .register(&arms[1].1, false)
         .unwrap();
-    commit_all(&dir, "noisy again");
-    let r = ProtocolFile::read(&p)
-        .unwrap()
-        .register(&noisy, false)
-        .unwrap();
+    // Spent by the arm that ran before it was committed, not by the one that ran after.
     assert_eq!(r.status, RegistrationStatus::Rerun);
+    assert_eq!(r.spent_by.len(), 1, "{:?}", r.spent_by);
     assert!(
-        r.spent_by
-            .iter()
-            .all(|f| f.starts_with("results/mujoco-noisy/")),
+        r.spent_by[0].starts_with("results/arm-world/"),
         "{:?}",
         r.spent_by
     );
