@@ -15,8 +15,10 @@ sets=("$@")
 [[ -x $bin ]] || { echo "error: $bin is missing: cargo build --release -p dips-cli" >&2; exit 1; }
 for set in "${sets[@]}"; do
     for seed in 0 1 2; do
+        models=onnx/models/screwdriver
+        [[ $seed == 0 ]] || models=$models-seed$seed
         "$bin" eval --protocol "docs/results/protocols/screwdriver-models-$set-seed$seed.json" \
             --out "docs/results/screwdriver/models-$set-seed$seed" --jobs 1 --model-threads 1 \
-            --animate none --episode-reports medians
+            --animate none --episode-reports medians --models "$models"
     done
 done
