@@ -10,4 +10,4 @@ pub mod quality;
 // The world and the generic solver are crates of their own (`dips-world`, `dips-csvto`); their
 // modules are re-exported here so that `dips_host::world::World` and the like stay the paths.
 pub use dips_csvto as csvto;
-pub use dips_world::{atomic_write, geometry, hand, kinematics, render, scenes, world};
+pub use dips_world::{geometry, hand, kinematics, render, scenes, world};

@@ -5,8 +5,8 @@
 //!   Kubernetes Indexed Job's `JOB_COMPLETION_INDEX`), resolved once into a [`Shard`];
 //! - [`diff`]: which setting differs between two runs, named;
 //! - [`progress`]: a bar on a terminal, plain lines with done/total, rate and ETA in a log;
-//! - [`record`]: `shards/shard-I-of-N.json`, what a finished shard leaves for the merge, and
-//!   an atomic write whose temporary file is unique across hosts sharing a directory.
+//! - [`record`]: `shards/shard-I-of-N.json`, what a finished shard leaves for the merge
+//!   (written with `dips_fs::write_atomic`, unique across hosts sharing a directory).
 //!
 //! See `docs/cluster.md`.
 

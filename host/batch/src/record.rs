@@ -1,10 +1,9 @@
 //! What a finished shard leaves behind: `DIR/shards/shard-I-of-N.json` (host, wall time, its
-//! report), so that a merge can name the shards that never finished, and files written so that
-//! shards on several hosts sharing one directory never corrupt each other's.
+//! report), so that a merge can name the shards that never finished; written with
+//! [`dips_fs::write_atomic`], so that shards on several hosts sharing one directory never
+//! corrupt each other's files.
 
-use std::io::Write;
 use std::path::{Path, PathBuf};
-use std::sync::atomic::{AtomicU64, Ordering};
 
 use serde::{Deserialize, Serialize};
 
@@ -68,41 +67,6 @@ impl ShardRecord {
     }
 }
 
-/// This machine's name (`/proc/sys/kernel/hostname`, else `$HOSTNAME`, else `unknown`).
-pub fn hostname() -> String {
-    std::fs::read_to_string("/proc/sys/kernel/hostname")
-        .ok()
-        .map(|s| s.trim().to_string())
-        .filter(|s| !s.is_empty())
-        .or_else(|| std::env::var("HOSTNAME").ok())
-        .unwrap_or_else(|| "unknown".into())
-}
-
-/// Write `bytes` to `path` atomically: a temporary file in the same folder named after this
-/// host, process and call (unique even when shards on several hosts share the folder), synced,
-/// then renamed over `path`.
-pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), BatchError> {
-    static CALLS: AtomicU64 = AtomicU64::new(0);
-    let mut tmp = path.as_os_str().to_owned();
-    tmp.push(format!(
-        ".tmp-{}-{}-{}",
-        hostname(),
-        std::process::id(),
-        CALLS.fetch_add(1, Ordering::Relaxed)
-    ));
-    let tmp = PathBuf::from(tmp);
-    let result = (|| {
-        let mut f = std::fs::File::create(&tmp)?;
-        f.write_all(bytes)?;
-        f.sync_all()?;
-        std::fs::rename(&tmp, path)
-    })();
-    if result.is_err() {
-        let _ = std::fs::remove_file(&tmp);
-    }
-    result.map_err(io(path))
-}
-
 /// The record file of `shard` in `dir`.
 pub fn record_path(dir: &Path, shard: Shard) -> PathBuf {
     dir.join(SHARDS_DIR)
@@ -121,7 +85,7 @@ pub fn write_record(
     let record = ShardRecord {
         index: shard.index,
         count: shard.count,
-        host: hostname(),
+        host: dips_fs::hostname(),
         seconds,
         finished_unix_s: std::time::SystemTime::now()
             .duration_since(std::time::UNIX_EPOCH)
@@ -130,7 +94,7 @@ pub fn write_record(
     };
     let path = record_path(dir, shard);
     let text = serde_json::to_string_pretty(&record).unwrap_or_default();
-    write_atomic(&path, text.as_bytes())?;
+    dips_fs::write_atomic(&path, text.as_bytes()).map_err(io(&path))?;
     Ok(record)
 }
 

@@ -6,7 +6,7 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{Context, bail};
 use clap::Args;
-use dips_host::atomic_write::write_atomic;
+use dips_fs::write_atomic;
 use dips_host::planning::models_dir;
 use dips_host::quality::{QualityOptions, QualityReport, markdown, measure};
 use dips_host::scenes::SceneKind;

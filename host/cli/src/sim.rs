@@ -364,7 +364,7 @@ fn write_json<T: Serialize>(path: &Path, value: &T) -> Result<(), SimCliError> {
         path: path.display().to_string(),
         message: e.to_string(),
     })?;
-    dips_host::atomic_write::write_atomic(path, text.as_bytes()).map_err(|source| SimCliError::Io {
+    dips_fs::write_atomic(path, text.as_bytes()).map_err(|source| SimCliError::Io {
         path: path.display().to_string(),
         source,
     })

@@ -120,8 +120,9 @@ pub fn index(dir: &Path, task: SceneKind) -> Result<Manifest, DatagenError> {
     };
     let path = dir.join("manifest.json");
     let text = serde_json::to_string_pretty(&manifest).unwrap_or_default();
-    // Every shard of a shared directory rewrites it when it finishes: dips-batch's writer
-    // names its temporary file after the host too, so two shards never write one.
-    dips_batch::record::write_atomic(&path, text.as_bytes())?;
+    // Every shard of a shared directory rewrites it when it finishes: the atomic writer names
+    // its temporary file after the host too, so two shards never write one.
+    dips_fs::write_atomic(&path, text.as_bytes())
+        .map_err(|source| DatagenError::Io { path, source })?;
     Ok(manifest)
 }

@@ -41,7 +41,7 @@ fn same_dir(a: &Path, b: &Path) -> bool {
 /// Copy `from` to `to` atomically (a temporary file beside `to`, then a rename).
 fn copy_atomic(from: &Path, to: &Path) -> Result<(), DatagenError> {
     let bytes = std::fs::read(from).map_err(io(from))?;
-    Ok(dips_batch::record::write_atomic(to, &bytes)?)
+    dips_fs::write_atomic(to, &bytes).map_err(io(to))
 }
 
 /// Merge the dataset directories `sources` into `out` (which may be one of them, or hold the
@@ -129,7 +129,7 @@ pub fn merge(
         if !path.exists() {
             let text = serde_json::to_string_pretty(r).unwrap_or_default();
             std::fs::create_dir_all(out.join(dips_batch::record::SHARDS_DIR)).map_err(io(out))?;
-            dips_batch::record::write_atomic(&path, text.as_bytes())?;
+            dips_fs::write_atomic(&path, text.as_bytes()).map_err(io(&path))?;
         }
     }
     let manifest = index(out, task)?;

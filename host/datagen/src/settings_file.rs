@@ -5,7 +5,6 @@
 use std::path::Path;
 
 use dips_batch::first_difference;
-use dips_batch::record::write_atomic;
 use serde::{Deserialize, Serialize};
 
 use crate::run::{DatagenError, DatagenSettings};
@@ -128,7 +127,9 @@ pub fn read_datagen_file(dir: &Path) -> Result<Option<DatagenFile>, DatagenError
 /// Write `file` to `dir/datagen.json` atomically.
 pub fn write_datagen_file(dir: &Path, file: &DatagenFile) -> Result<(), DatagenError> {
     let text = serde_json::to_string_pretty(file).unwrap_or_default();
-    Ok(write_atomic(&dir.join(DATAGEN_FILE), text.as_bytes())?)
+    let path = dir.join(DATAGEN_FILE);
+    dips_fs::write_atomic(&path, text.as_bytes())
+        .map_err(|source| DatagenError::Io { path, source })
 }
 
 /// Record `settings`' batch in `dir/datagen.json`, refusing a directory of another task or a

@@ -22,7 +22,6 @@
 //! [safetensors]: https://huggingface.co/docs/safetensors
 
 use std::collections::{BTreeMap, HashMap};
-use std::io::Write;
 use std::path::{Path, PathBuf};
 
 use dips_kernel::mode::{SegmentDims, Task};
@@ -295,19 +294,6 @@ impl DemoRecord {
     }
 }
 
-/// Write `bytes` to `path` atomically: a temporary file in the same folder, then a rename.
-pub fn write_atomic(path: &Path, bytes: &[u8]) -> std::io::Result<()> {
-    let mut tmp = path.as_os_str().to_owned();
-    tmp.push(format!(".tmp{}", std::process::id()));
-    let tmp = PathBuf::from(tmp);
-    {
-        let mut f = std::fs::File::create(&tmp)?;
-        f.write_all(bytes)?;
-        f.sync_all()?;
-    }
-    std::fs::rename(&tmp, path)
-}
-
 /// Little-endian bytes of `f32`s (the safetensors byte order).
 pub fn f32_bytes(v: &[f32]) -> Vec<u8> {
     v.iter().flat_map(|x| x.to_le_bytes()).collect()
@@ -379,7 +365,7 @@ pub fn encode_demo(path: &Path, demo: &DemoRecord) -> Result<Vec<u8>> {
 /// first; an inconsistent record is [`DatasetError::BadRecord`] and nothing is written.
 pub fn write_demo(path: &Path, demo: &DemoRecord) -> Result<()> {
     let bytes = encode_demo(path, demo)?;
-    write_atomic(path, &bytes).map_err(|source| DatasetError::Io {
+    dips_fs::write_atomic(path, &bytes).map_err(|source| DatasetError::Io {
         path: path.to_path_buf(),
         source,
     })

@@ -15,7 +15,7 @@ use dips_kernel::mode::{ModeId, Task};
 use dips_kernel::prior::MarkovPrior;
 use serde::{Deserialize, Serialize};
 
-use crate::{Dataset, DatasetError, Result, write_atomic};
+use crate::{Dataset, DatasetError, Result};
 
 /// The format tag of version 1.
 pub const PRIOR_FORMAT: &str = "dips-prior-1";
@@ -152,7 +152,7 @@ impl PriorFile {
     /// Write `path` atomically (pretty JSON).
     pub fn save(&self, path: &Path) -> Result<()> {
         let text = serde_json::to_string_pretty(self).map_err(|e| bad(path, e.to_string()))?;
-        write_atomic(path, text.as_bytes()).map_err(|source| DatasetError::Io {
+        dips_fs::write_atomic(path, text.as_bytes()).map_err(|source| DatasetError::Io {
             path: path.to_path_buf(),
             source,
         })

@@ -7,8 +7,9 @@
 use std::path::{Path, PathBuf};
 
 use anyhow::{Context, bail};
-use dips_batch::record::{SHARDS_DIR, record_path, write_atomic};
+use dips_batch::record::{SHARDS_DIR, record_path};
 use dips_batch::{Shard, ShardRecord, first_difference, read_records, shards_without_record};
+use dips_fs::write_atomic;
 use serde::Serialize;
 
 use crate::protocol::{Registration, read_registration, write_registration};
@@ -73,7 +74,8 @@ fn copy_episode(from: &Path, to: &Path) -> anyhow::Result<()> {
     for f in files {
         let Some(name) = f.file_name() else { continue };
         let bytes = std::fs::read(&f).with_context(|| format!("reading {}", f.display()))?;
-        write_atomic(&to.join(name), &bytes)?;
+        let path = to.join(name);
+        write_atomic(&path, &bytes).with_context(|| format!("writing {}", path.display()))?;
     }
     Ok(())
 }
@@ -171,15 +173,15 @@ pub fn merge(out: &Path, sources: &[PathBuf], allow_missing: bool) -> anyhow::Re
     {
         write_registration(out, r)?;
     }
-    write_atomic(
-        &out.join(EVAL_FILE),
-        serde_json::to_string_pretty(&file)?.as_bytes(),
-    )?;
+    let path = out.join(EVAL_FILE);
+    write_atomic(&path, serde_json::to_string_pretty(&file)?.as_bytes())
+        .with_context(|| format!("writing {}", path.display()))?;
     for r in &records {
         let path = record_path(out, r.shard());
         if !path.exists() {
             std::fs::create_dir_all(out.join(SHARDS_DIR))?;
-            write_atomic(&path, serde_json::to_string_pretty(r)?.as_bytes())?;
+            write_atomic(&path, serde_json::to_string_pretty(r)?.as_bytes())
+                .with_context(|| format!("writing {}", path.display()))?;
         }
     }
     let count = records.iter().map(|r| r.count).max();

@@ -8,7 +8,7 @@ use std::time::Instant;
 
 use anyhow::{Context, anyhow};
 use dips_batch::Progress;
-use dips_host::atomic_write::write_atomic;
+use dips_fs::write_atomic;
 use dips_host::execute::{EpisodeResult, ExecSettings};
 use dips_host::hand::{HandOptions, Hands, TrackerNoise, WorldHands};
 use dips_host::online::{Method, run_online};

@@ -318,9 +318,11 @@ pub fn claim_dir(dir: &Path, settings: &EvalSettings) -> anyhow::Result<EvalFile
     // Before eval.json is written: whether the directory held an evaluation decides.
     crate::protocol::claim_registration(dir, settings.registration.as_ref())?;
     let text = serde_json::to_string_pretty(&file)?;
-    // Shards on several hosts may claim one directory at once: dips-batch's writer names its
+    // Shards on several hosts may claim one directory at once: the atomic writer names its
     // temporary file after the host too, so their writes never share one.
-    dips_batch::record::write_atomic(&dir.join(EVAL_FILE), text.as_bytes())?;
+    let path = dir.join(EVAL_FILE);
+    dips_fs::write_atomic(&path, text.as_bytes())
+        .with_context(|| format!("writing {}", path.display()))?;
     Ok(file)
 }
 

@@ -4,7 +4,7 @@
 use std::path::Path;
 
 use anyhow::Context;
-use dips_host::atomic_write::write_atomic;
+use dips_fs::write_atomic;
 use dips_host::execute::episode::episode_success;
 use dips_host::scenes::SceneKind;
 use dips_plot::{BoxPlot, BoxSeries};

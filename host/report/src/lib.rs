@@ -45,7 +45,7 @@ pub enum ReportError {
 
 /// Write `bytes` to `path` atomically.
 pub fn write_file(path: &Path, bytes: &[u8]) -> Result<(), ReportError> {
-    dips_host::atomic_write::write_atomic(path, bytes).map_err(|source| ReportError::Io {
+    dips_fs::write_atomic(path, bytes).map_err(|source| ReportError::Io {
         path: path.display().to_string(),
         source,
     })

@@ -372,7 +372,7 @@ impl EpisodeResult {
     pub fn write(&self, dir: &Path) -> std::io::Result<()> {
         std::fs::create_dir_all(dir)?;
         let text = serde_json::to_string_pretty(self).map_err(std::io::Error::other)?;
-        crate::atomic_write::write_atomic(&dir.join("result.json"), text.as_bytes())
+        dips_fs::write_atomic(&dir.join("result.json"), text.as_bytes())
     }
 }
 

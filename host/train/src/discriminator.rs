@@ -251,7 +251,7 @@ fn write_cache(path: &Path, key: &str, v: &[f32], seconds: f64) -> Result<()> {
             reason: e.to_string(),
         }
     })?;
-    dips_dataset::write_atomic(path, &buf).map_err(io_err(path))
+    dips_fs::write_atomic(path, &buf).map_err(io_err(path))
 }
 
 /// Real and diffused trajectories, normalised: `fake` holds one set of `n` per sampler,

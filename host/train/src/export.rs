@@ -111,6 +111,6 @@ pub fn discriminator_model(
 /// Validate a model against contract v1 and write it atomically.
 pub fn write_model(path: &Path, proto: &pb::ModelProto) -> Result<dips_onnx::Contract> {
     let contract = dips_onnx::contract::validate(proto)?;
-    dips_dataset::write_atomic(path, &proto.encode_to_vec()).map_err(io_err(path))?;
+    dips_fs::write_atomic(path, &proto.encode_to_vec()).map_err(io_err(path))?;
     Ok(contract)
 }

@@ -152,7 +152,7 @@ pub fn run_policy(
         path: path.clone(),
         source: std::io::Error::other(e),
     })?;
-    dips_dataset::write_atomic(&path, &json).map_err(io_err(&path))?;
+    dips_fs::write_atomic(&path, &json).map_err(io_err(&path))?;
     Ok(report)
 }
 
@@ -251,6 +251,6 @@ pub fn run(
         path: path.clone(),
         source: std::io::Error::other(e),
     })?;
-    dips_dataset::write_atomic(&path, &json).map_err(io_err(&path))?;
+    dips_fs::write_atomic(&path, &json).map_err(io_err(&path))?;
     Ok(report)
 }

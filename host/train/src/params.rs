@@ -216,7 +216,7 @@ impl Checkpoint {
             serde_json::to_string(&self.params.names).map_err(|e| ck(e.to_string()))?,
         );
         let buf = safetensors::serialize(views, Some(meta)).map_err(|e| ck(e.to_string()))?;
-        dips_dataset::write_atomic(path, &buf).map_err(io_err(path))
+        dips_fs::write_atomic(path, &buf).map_err(io_err(path))
     }
 
     /// Read a checkpoint whose parameters must have the names and shapes of `template`.

@@ -473,7 +473,7 @@ pub fn write(fig: &SceneFigure, path: &Path) -> Result<(), RenderError> {
         Some("png") => fig.png().map_err(plot)?,
         _ => return Err(RenderError::Format(name)),
     };
-    crate::atomic_write::write_atomic(path, &bytes).map_err(|source| RenderError::Io {
+    dips_fs::write_atomic(path, &bytes).map_err(|source| RenderError::Io {
         path: path.display().to_string(),
         source,
     })
