@@ -22,6 +22,7 @@ pub mod budget;
 pub mod diffusion;
 pub mod engine;
 pub mod mode;
+pub mod name;
 pub mod nn;
 pub mod prior;
 pub mod rng;

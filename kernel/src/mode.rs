@@ -405,6 +405,22 @@ impl fmt::Display for UnknownName {
 
 impl core::error::Error for UnknownName {}
 
+impl core::str::FromStr for Task {
+    type Err = crate::name::UnknownValue;
+
+    /// A task by its name ([`Task::name`]); the error names the value and the tasks.
+    fn from_str(name: &str) -> Result<Self, Self::Err> {
+        crate::name::UnknownValue::find("task", name, &Self::ALL, &Self::NAMES, Self::name)
+    }
+}
+
+impl fmt::Display for Task {
+    /// The task's name ([`Task::name`]).
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
 impl Task {
     /// Every task.
     pub const ALL: [Task; 2] = [Task::Screwdriver, Task::Card];
@@ -416,6 +432,9 @@ impl Task {
             Task::Card => "card",
         }
     }
+
+    /// Every task's name, in [`Task::ALL`] order.
+    pub const NAMES: [&'static str; 2] = [Task::Screwdriver.name(), Task::Card.name()];
 
     /// Parse a task name.
     pub fn from_name(name: &str) -> Result<Self, UnknownName> {

@@ -92,6 +92,8 @@ impl core::fmt::Display for SamplerNameError {
     }
 }
 
+impl core::error::Error for SamplerNameError {}
+
 impl core::str::FromStr for SamplerConfig {
     type Err = SamplerNameError;
 

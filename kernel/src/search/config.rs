@@ -29,6 +29,28 @@ impl CostToCome {
             CostToCome::LastSegment => "last-segment",
         }
     }
+
+    /// Both forms' names, in [`CostToCome::ALL`] order.
+    pub const NAMES: [&'static str; 2] = [
+        CostToCome::Cumulative.name(),
+        CostToCome::LastSegment.name(),
+    ];
+}
+
+impl core::str::FromStr for CostToCome {
+    type Err = crate::name::UnknownValue;
+
+    /// A form by its name ([`CostToCome::name`]); the error names the value and the forms.
+    fn from_str(name: &str) -> Result<Self, Self::Err> {
+        crate::name::UnknownValue::find("cost-to-come", name, &Self::ALL, &Self::NAMES, Self::name)
+    }
+}
+
+impl fmt::Display for CostToCome {
+    /// The form's name ([`CostToCome::name`]).
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.name())
+    }
 }
 
 /// Which node representation the search uses.
@@ -166,6 +188,43 @@ impl SearchConfig {
     }
 }
 
+/// The search settings a caller may set over a task's own (command-line flags, an
+/// evaluation's settings): each `None` leaves the task's ([`SearchConfig::for_task`]).
+/// [`SearchOverrides::resolve`] is the one place where "not given" becomes the task's value;
+/// the call's seed and wall-clock budget are always given by the caller.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct SearchOverrides {
+    /// Particles per node (`k`; `None`: 16).
+    pub k: Option<u16>,
+    /// The search depth (`None`: the task's mode limit, screwdriver 7, card 5).
+    pub max_depth: Option<u8>,
+    /// Most node expansions per call (0: the planner's capacity; `None`: the task's,
+    /// screwdriver [`SCREWDRIVER_NODE_BUDGET`], card 0).
+    pub node_budget: Option<u32>,
+    /// How `g` is formed (`None`: the task's, screwdriver cumulative, card last segment).
+    pub cost_to_come: Option<CostToCome>,
+    /// Particle or max-likelihood nodes (`None`: particles).
+    pub variant: Option<SearchVariant>,
+}
+
+impl SearchOverrides {
+    /// The settings of one planning call for `task`: the task's own with every given
+    /// override, the call's `seed` and its wall-clock budget `time_budget_ms` (0: none).
+    pub fn resolve(&self, task: Task, seed: u64, time_budget_ms: u32) -> SearchConfig {
+        let base = SearchConfig::for_task(task);
+        SearchConfig {
+            k: self.k.unwrap_or(base.k),
+            max_depth: self.max_depth.unwrap_or(base.max_depth),
+            node_budget: self.node_budget.unwrap_or(base.node_budget),
+            time_budget_ms,
+            seed,
+            cost_to_come: self.cost_to_come.unwrap_or(base.cost_to_come),
+            variant: self.variant.unwrap_or(base.variant),
+            ..base
+        }
+    }
+}
+
 /// The [`SearchConfig`] field that is out of range.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 #[non_exhaustive]
@@ -226,6 +285,52 @@ mod tests {
         assert_eq!(card.node_budget, 0);
         assert_eq!(card.cost_to_come, CostToCome::LastSegment);
         assert_eq!(c.cost_to_come, CostToCome::Cumulative);
+    }
+
+    #[test]
+    fn overrides_resolve_over_the_tasks_settings() {
+        for task in Task::ALL {
+            let own = SearchOverrides::default().resolve(task, 9, 300_000);
+            assert_eq!(
+                own,
+                SearchConfig {
+                    seed: 9,
+                    ..SearchConfig::for_task(task)
+                }
+            );
+        }
+        let given = SearchOverrides {
+            k: Some(4),
+            max_depth: Some(3),
+            node_budget: Some(0),
+            cost_to_come: Some(CostToCome::Cumulative),
+            variant: Some(SearchVariant::MaxLikelihood),
+        };
+        let c = given.resolve(Task::Card, 1, 250);
+        assert_eq!((c.k, c.max_depth, c.node_budget), (4, 3, 0));
+        assert_eq!((c.time_budget_ms, c.seed), (250, 1));
+        assert_eq!(c.cost_to_come, CostToCome::Cumulative);
+        assert_eq!(c.variant, SearchVariant::MaxLikelihood);
+        assert_eq!((c.alpha, c.beta), (1e5, 0.0), "the card's own weights stay");
+    }
+
+    #[test]
+    fn names_round_trip() {
+        use core::str::FromStr;
+        use std::string::ToString;
+        for c in CostToCome::ALL {
+            assert_eq!(CostToCome::from_str(&c.to_string()), Ok(c));
+        }
+        let e = CostToCome::from_str("sum").unwrap_err().to_string();
+        assert_eq!(
+            e,
+            "unknown cost-to-come `sum` (expected cumulative or last-segment)"
+        );
+        for t in Task::ALL {
+            assert_eq!(Task::from_str(&t.to_string()), Ok(t));
+        }
+        let e = Task::from_str("pen").unwrap_err().to_string();
+        assert_eq!(e, "unknown task `pen` (expected screwdriver or card)");
     }
 
     #[test]

@@ -15,7 +15,9 @@ pub mod planner;
 pub mod report;
 pub mod traits;
 
-pub use config::{CostToCome, MAX_PLAN_LEN, SCREWDRIVER_NODE_BUDGET, SearchConfig, SearchVariant};
+pub use config::{
+    CostToCome, MAX_PLAN_LEN, SCREWDRIVER_NODE_BUDGET, SearchConfig, SearchOverrides, SearchVariant,
+};
 pub use planner::{PaperPlanner, Planner, Problem};
 pub use report::{
     ApproximateReason, Capacity, PSI_BINS, ParticleDiagnostics, SearchReport, SearchStats,

@@ -71,7 +71,8 @@ pub struct SearchSettings {
 
 impl Default for SearchSettings {
     /// The paper's values (`spec/algorithms.md` §6): k 16, depth 7, γ 0.9, α 1e4, β 1e3,
-    /// p_min 0.1, 300 s.
+    /// p_min 0.1, 300 s, no node budget: the kernel's `SearchConfig::default`, field by field
+    /// (a kernel test holds them equal).
     fn default() -> Self {
         Self {
             k: 16,
@@ -80,7 +81,7 @@ impl Default for SearchSettings {
             alpha: 1.0e4,
             beta: 1.0e3,
             p_min: 0.1,
-            node_budget: 10_000,
+            node_budget: 0,
             time_budget_ms: 300_000,
             seed: 0,
             cost_to_come: CostToCome::Cumulative,

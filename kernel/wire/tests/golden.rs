@@ -26,6 +26,8 @@ fn canonical_to_kernel() -> std::vec::Vec<ToKernel> {
             goal: -core::f32::consts::FRAC_PI_3,
             settings: SearchSettings {
                 seed: 42,
+                // The golden bytes were written when the default budget was 10 000.
+                node_budget: 10_000,
                 ..SearchSettings::default()
             },
             previous_mode: Some(2),
