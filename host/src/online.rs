@@ -22,9 +22,10 @@ use anyhow::{Context, anyhow, bail};
 use dips_kernel::diffusion::SamplerConfig;
 use dips_kernel::engine::DenoiserEngine;
 use dips_kernel::mode::{ModeId, Task};
+use dips_kernel::name::UnknownValue;
 use dips_kernel::prior::MarkovPrior;
 use dips_kernel::rng::KernelRng;
-use dips_kernel::search::{CostToCome, SearchConfig, SearchVariant};
+use dips_kernel::search::{SearchConfig, SearchOverrides, SearchVariant};
 use dips_kernel::session::PlanSpec;
 
 use crate::execute::episode::{CARD_MODES, SCREWDRIVER_MODES};
@@ -86,17 +87,20 @@ impl Method {
         }
     }
 
-    /// Parse a `--method` name; the error lists the names.
+    /// Every method's name, in [`Method::ALL`] order.
+    pub const NAMES: [&'static str; 7] = [
+        Method::Dips.name(),
+        Method::DipsSampled.name(),
+        Method::CsvtoSampled.name(),
+        Method::DipsNoReplan.name(),
+        Method::DipsK1.name(),
+        Method::DipsMaxLikelihood.name(),
+        Method::DiffusionPolicy.name(),
+    ];
+
+    /// Parse a `--method` name ([`Method`]'s `FromStr`); the error lists the names.
     pub fn from_name(name: &str) -> anyhow::Result<Self> {
-        Self::ALL
-            .into_iter()
-            .find(|m| m.name() == name)
-            .ok_or_else(|| {
-                anyhow!(
-                    "unknown method `{name}`; available: {}",
-                    Self::ALL.map(Method::name).join(", ")
-                )
-            })
+        Ok(name.parse()?)
     }
 
     /// Whether the method needs the diffusion models.
@@ -110,6 +114,22 @@ impl Method {
             self,
             Method::DipsSampled | Method::CsvtoSampled | Method::DiffusionPolicy
         )
+    }
+}
+
+impl std::str::FromStr for Method {
+    type Err = UnknownValue;
+
+    /// A method by its name ([`Method::name`]); the error names the value and the methods.
+    fn from_str(name: &str) -> Result<Self, Self::Err> {
+        UnknownValue::find("method", name, &Self::ALL, &Self::NAMES, Self::name)
+    }
+}
+
+impl std::fmt::Display for Method {
+    /// The method's name ([`Method::name`]).
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
     }
 }
 
@@ -132,9 +152,11 @@ pub fn time_budget_ms(seconds: f64) -> u32 {
 pub struct OnlineSettings {
     /// Wall-clock budget of one planning call (s); the best node so far when it runs out.
     pub time_budget_s: f64,
-    /// Most node expansions per planning call (0: the planner's capacity; `None`: the task's,
-    /// [`SearchConfig::for_task`]).
-    pub node_budget: Option<u32>,
+    /// The search settings given over the task's (node budget, cost-to-come; `None` fields:
+    /// the task's), resolved for each call by [`SearchOverrides::resolve`] with the call's
+    /// depth, seed and [`OnlineSettings::time_budget_s`]. The method sets `k` and the node
+    /// variant of its ablation over them.
+    pub search: SearchOverrides,
     /// Sampler of the search's edges and of CSVTO's initialisation.
     pub sampler: SamplerConfig,
     /// The sequence a fixed-sequence method executes instead of the prior's draw.
@@ -142,10 +164,16 @@ pub struct OnlineSettings {
     /// Stop after this many modes (`None`: the task's limit, 7 / 5). The search depth does
     /// not change.
     pub max_modes: Option<usize>,
-    /// How the search forms `g` (`None`: the task's, [`SearchConfig::for_task`]).
-    pub cost_to_come: Option<CostToCome>,
     /// How deep each planning call searches (`None`: the task's, [`SearchDepth::for_task`]).
     pub search_depth: Option<SearchDepth>,
+}
+
+impl OnlineSettings {
+    /// The episode's search depth rule: [`OnlineSettings::search_depth`] when given, else the
+    /// task's ([`SearchDepth::for_task`]).
+    pub fn depth_rule(&self, scene: SceneKind) -> SearchDepth {
+        self.search_depth.unwrap_or(SearchDepth::for_task(scene))
+    }
 }
 
 /// How deep the planning calls of an episode search.
@@ -163,6 +191,9 @@ impl SearchDepth {
     /// Both rules, in `--search-depth` order.
     pub const ALL: [Self; 2] = [Self::Fixed, Self::ModesLeft];
 
+    /// Both rules' names, in [`SearchDepth::ALL`] order.
+    pub const NAMES: [&'static str; 2] = [Self::Fixed.name(), Self::ModesLeft.name()];
+
     /// The task's rule (`docs/online.md`, "Search depth"): the modes left for both. The
     /// screwdriver departs from the paper's fixed depth since its segments are anchored at
     /// their starts (`dips_kernel::session::start_anchor`), measured there.
@@ -173,7 +204,7 @@ impl SearchDepth {
     }
 
     /// The name used by `--search-depth` and `eval.json`.
-    pub fn name(self) -> &'static str {
+    pub const fn name(self) -> &'static str {
         match self {
             Self::Fixed => "fixed",
             Self::ModesLeft => "modes-left",
@@ -191,16 +222,31 @@ impl SearchDepth {
     }
 }
 
+impl std::str::FromStr for SearchDepth {
+    type Err = UnknownValue;
+
+    /// A rule by its name ([`SearchDepth::name`]); the error names the value and the rules.
+    fn from_str(name: &str) -> Result<Self, Self::Err> {
+        UnknownValue::find("search depth", name, &Self::ALL, &Self::NAMES, Self::name)
+    }
+}
+
+impl std::fmt::Display for SearchDepth {
+    /// The rule's name ([`SearchDepth::name`]).
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
 impl Default for OnlineSettings {
     /// The paper's: 300 s, DDPM-256 with guidance 1.2 and noise factor 0.5.
     fn default() -> Self {
         Self {
             time_budget_s: 300.0,
-            node_budget: None,
+            search: SearchOverrides::default(),
             sampler: SamplerConfig::default(),
             sequence: None,
             max_modes: None,
-            cost_to_come: None,
             search_depth: None,
         }
     }
@@ -266,7 +312,8 @@ pub fn diffusion_particles<H: Hand + ?Sized>(
         .collect()
 }
 
-/// The search settings of `method` for one call.
+/// The search settings of `method` for one call: the settings' overrides with the call's
+/// depth and the method's ablation, resolved by [`SearchOverrides::resolve`].
 fn search_config(
     method: Method,
     task: Task,
@@ -274,21 +321,16 @@ fn search_config(
     settings: &OnlineSettings,
     seed: u64,
 ) -> SearchConfig {
-    let base = SearchConfig::for_task(task);
-    let mut c = SearchConfig {
-        max_depth: depth,
-        node_budget: settings.node_budget.unwrap_or(base.node_budget),
-        time_budget_ms: time_budget_ms(settings.time_budget_s),
-        seed,
-        cost_to_come: settings.cost_to_come.unwrap_or(base.cost_to_come),
-        ..base
+    let mut overrides = SearchOverrides {
+        max_depth: Some(depth),
+        ..settings.search
     };
     match method {
-        Method::DipsK1 => c.k = 1,
-        Method::DipsMaxLikelihood => c.variant = SearchVariant::MaxLikelihood,
+        Method::DipsK1 => overrides.k = Some(1),
+        Method::DipsMaxLikelihood => overrides.variant = Some(SearchVariant::MaxLikelihood),
         _ => {}
     }
-    c
+    overrides.resolve(task, seed, time_budget_ms(settings.time_budget_s))
 }
 
 /// One planning call from the hand's state.
@@ -464,10 +506,7 @@ pub fn run_online<H: Hand + ?Sized>(
                 (None, Some(s)) => s,
                 (None, None) => bail!("method `{}` needs the diffusion models", method.name()),
             };
-            let depth = settings
-                .search_depth
-                .unwrap_or(SearchDepth::for_task(scene))
-                .depth(limit, executed.len());
+            let depth = settings.depth_rule(scene).depth(limit, executed.len());
             progress(&format!(
                 "planning call {} (depth {depth})",
                 plans.len() + 1

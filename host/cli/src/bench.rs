@@ -10,7 +10,9 @@ use clap::{Args, Subcommand};
 use dips_kernel::mode::{ContactMode, SegmentDims, Task};
 use dips_kernel::prior::MarkovPrior;
 use dips_kernel::rng::KernelRng;
-use dips_kernel::search::{PaperPlanner, SearchConfig, SearchStats, SegmentSampler, SegmentScorer};
+use dips_kernel::search::{
+    PaperPlanner, SearchOverrides, SearchStats, SegmentSampler, SegmentScorer,
+};
 use dips_kernel::session::{PlanSpec, plan_with_adapters};
 use dips_kernel::task::{CardObjective, Objective, ScrewdriverObjective};
 
@@ -48,8 +50,8 @@ pub enum BenchCommand {
 pub struct SearchBenchArgs {
     /// Task whose sizes and costs are used (`screwdriver`: T=13, D=37, 3 modes; `card`:
     /// T=9, D=29, 4 modes).
-    #[arg(long, default_value = "screwdriver")]
-    pub task: String,
+    #[arg(long, default_value = "screwdriver", value_parser = crate::search_args::named::<Task>())]
+    pub task: Task,
     /// Particles per node.
     #[arg(long, default_value_t = 16)]
     pub k: u16,
@@ -208,18 +210,17 @@ fn start_state(task: Task) -> Vec<f32> {
 }
 
 fn search(a: &SearchBenchArgs) -> anyhow::Result<()> {
-    let task = Task::from_name(&a.task)
-        .map_err(|_| anyhow::anyhow!("unknown task {:?} (expected screwdriver or card)", a.task))?;
+    let task = a.task;
     if !(a.seconds.is_finite() && a.seconds > 0.0) {
         bail!("--seconds must be a positive number, got {}", a.seconds);
     }
-    let config = SearchConfig {
-        k: a.k,
-        max_depth: a.depth,
-        node_budget: a.expansions_per_call,
-        time_budget_ms: 0,
-        ..SearchConfig::for_task(task)
-    };
+    let config = SearchOverrides {
+        k: Some(a.k),
+        max_depth: Some(a.depth),
+        node_budget: Some(a.expansions_per_call),
+        ..SearchOverrides::default()
+    }
+    .resolve(task, 0, 0);
     config
         .validate()
         .with_context(|| "invalid search settings")?;

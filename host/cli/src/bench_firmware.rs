@@ -18,13 +18,14 @@ use std::time::Instant;
 use anyhow::{Context, anyhow, bail};
 use clap::Args;
 use dips_firmware_sim::{Firmware, FirmwareMemory};
-use dips_host::planning::{model_file, models_dir, parse_sampler};
+use dips_host::planning::{model_file, models_dir};
 use dips_host::problems::contract::contract_state;
 use dips_host::scenes::SceneKind;
 use dips_host::world::World;
 use dips_kernel::budget::NoClock;
+use dips_kernel::diffusion::SamplerConfig;
 use dips_kernel::mode::Task;
-use dips_kernel::search::{PaperPlanner, SearchConfig};
+use dips_kernel::search::{PaperPlanner, SearchOverrides};
 use dips_kernel::session::PlanSpec;
 use dips_kernel::wire_convert::settings_from_sampler;
 use dips_onnx::{Expectation, Role, lower_file};
@@ -38,14 +39,14 @@ use serde_json::json;
 #[derive(Debug, Args)]
 pub struct FirmwareBenchArgs {
     /// Task: `screwdriver` or `card`.
-    #[arg(long, default_value = "screwdriver")]
-    pub task: String,
+    #[arg(long, default_value = "screwdriver", value_parser = crate::search_args::named::<SceneKind>())]
+    pub task: SceneKind,
     /// Models directory (default: the shipped models).
     #[arg(long)]
     pub models: Option<std::path::PathBuf>,
     /// Diffusion sampler of the measured call (the stack and memory do not depend on it).
     #[arg(long, default_value = crate::search_args::DEFAULT_SAMPLER)]
-    pub sampler: String,
+    pub sampler: SamplerConfig,
     /// Expansions of the measured call (the stack and memory do not depend on it).
     #[arg(long, default_value_t = 2)]
     pub expansions: u32,
@@ -66,7 +67,7 @@ struct Setup {
 }
 
 fn setup(args: &FirmwareBenchArgs, task: Task) -> anyhow::Result<Setup> {
-    let scene = SceneKind::from_name(task.name()).ok_or_else(|| anyhow!("no scene"))?;
+    let scene = SceneKind::from(task);
     let dir = models_dir(args.models.as_deref(), task)?;
     let lower = |role| {
         let file = dir.join(model_file(role));
@@ -79,12 +80,12 @@ fn setup(args: &FirmwareBenchArgs, task: Task) -> anyhow::Result<Setup> {
         .map(|v| v as f32)
         .collect();
     let goal = PlanSpec::paper_goal(task, &start).ok_or_else(|| anyhow!("short state"))?;
-    let config = SearchConfig {
-        node_budget: args.expansions,
-        time_budget_ms: 0,
-        ..SearchConfig::for_task(task)
-    };
-    let sampler = settings_from_sampler(&parse_sampler(&args.sampler)?)
+    let config = SearchOverrides {
+        node_budget: Some(args.expansions),
+        ..SearchOverrides::default()
+    }
+    .resolve(task, 0, 0);
+    let sampler = settings_from_sampler(&args.sampler)
         .ok_or_else(|| anyhow!("--sampler: not expressible on the wire"))?;
     Ok(Setup {
         denoiser: lower(Role::Denoiser)?,
@@ -201,13 +202,7 @@ const WORK_FLOATS: usize = 16 << 20;
 
 /// Run the benchmark.
 pub fn run(args: &FirmwareBenchArgs) -> anyhow::Result<()> {
-    let scene = SceneKind::from_name(&args.task).with_context(|| {
-        format!(
-            "unknown task `{}` (expected screwdriver or card)",
-            args.task
-        )
-    })?;
-    let task = scene.task();
+    let task = args.task.task();
     let s = setup(args, task)?;
 
     // Memory and the wire's bytes, from one real call.
@@ -298,7 +293,7 @@ pub fn run(args: &FirmwareBenchArgs) -> anyhow::Result<()> {
         "settings": {
             "k": s.request.settings.k,
             "max_depth": s.request.settings.max_depth,
-            "sampler": args.sampler,
+            "sampler": args.sampler.method.to_string(),
             "expansions": plan.stats.nodes_expanded,
         },
         "static_memory": {

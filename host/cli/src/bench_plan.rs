@@ -7,25 +7,25 @@
 
 use std::time::Instant;
 
-use anyhow::{Context, anyhow};
+use anyhow::anyhow;
 use clap::Args;
 use dips_eval::summary::Stats;
 use dips_host::planning::{Models, PaperSession, StdClock, models_dir};
 use dips_host::problems::contract::contract_state;
 use dips_host::scenes::SceneKind;
 use dips_host::world::World;
-use dips_kernel::search::SearchConfig;
 use dips_kernel::session::PlanSpec;
 use serde_json::json;
 
 use crate::model::{EngineArg, SimdArg};
+use crate::search_args::named;
 
 /// `dips bench plan`.
 #[derive(Debug, Args)]
 pub struct PlanBenchArgs {
     /// Task: `screwdriver` or `card`.
-    #[arg(long, default_value = "screwdriver")]
-    pub task: String,
+    #[arg(long, default_value = "screwdriver", value_parser = named::<SceneKind>())]
+    pub task: SceneKind,
     /// Planning calls; call `i` uses seed `--seed + i`.
     #[arg(long, default_value_t = 10)]
     pub calls: u32,
@@ -60,19 +60,14 @@ pub struct PlanBenchArgs {
 
 /// Run the benchmark.
 pub fn run(args: &PlanBenchArgs) -> anyhow::Result<()> {
-    let scene = SceneKind::from_name(&args.task).with_context(|| {
-        format!(
-            "unknown task `{}` (expected screwdriver or card)",
-            args.task
-        )
-    })?;
+    let scene = args.task;
     if args.calls == 0 {
         anyhow::bail!("--calls must be at least 1");
     }
     let time_budget_ms = args.search.time_budget_ms()?;
     let task = scene.task();
     let simd = args.simd.apply();
-    let sampler = args.search.sampler_config()?;
+    let sampler = args.search.sampler;
     let dir = models_dir(args.models.as_deref(), task)?;
     let mut models = Models::load(args.engine.into(), &dir, task)?;
     let threads = crate::model::threads(args.threads)?;
@@ -85,18 +80,15 @@ pub fn run(args: &PlanBenchArgs) -> anyhow::Result<()> {
         .map(|v| v as f32)
         .collect();
     let goal = PlanSpec::paper_goal(task, &start).ok_or_else(|| anyhow!("state too short"))?;
-    let base = SearchConfig::for_task(task);
-    let cost_to_come = args.search.cost_to_come().unwrap_or(base.cost_to_come);
+    let overrides = args.search.overrides();
     let mut calls = Vec::new();
     let mut seconds = Vec::new();
+    // The form every call searches with (the calls differ only in their seeds).
+    let cost_to_come = overrides
+        .resolve(task, args.seed, time_budget_ms)
+        .cost_to_come;
     for i in 0..args.calls {
-        let config = SearchConfig {
-            seed: args.seed + u64::from(i),
-            time_budget_ms,
-            node_budget: args.search.node_budget_or(&base),
-            cost_to_come,
-            ..base
-        };
+        let config = overrides.resolve(task, args.seed + u64::from(i), time_budget_ms);
         let mut spec = PlanSpec::new(task, &start, goal).map_err(|e| anyhow!("{e}"))?;
         spec.search = config;
         spec.sampler = sampler;
@@ -129,7 +121,7 @@ pub fn run(args: &PlanBenchArgs) -> anyhow::Result<()> {
         "task": task.name(),
         "models": dir.display().to_string(),
         "engine": format!("{:?}", args.engine).to_lowercase(),
-        "sampler": args.search.sampler,
+        "sampler": args.search.sampler.method.to_string(),
         "cost_to_come": cost_to_come.name(),
         "start": "the task's start state",
         "threads": threads,

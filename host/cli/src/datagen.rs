@@ -10,6 +10,8 @@ use dips_batch::ShardSpec;
 use dips_datagen::{DatagenSettings, generate, index};
 use dips_host::scenes::SceneKind;
 
+use crate::search_args::named;
+
 /// `dips datagen` arguments.
 #[derive(Debug, Args)]
 #[command(args_conflicts_with_subcommands = true)]
@@ -19,8 +21,8 @@ pub struct DatagenArgs {
     #[command(subcommand)]
     pub command: Option<DatagenCommand>,
     /// Task: screwdriver or card.
-    #[arg(long)]
-    pub task: Option<String>,
+    #[arg(long, value_parser = named::<SceneKind>())]
+    pub task: Option<SceneKind>,
     /// Demos in the whole dataset (the paper's: screwdriver 240, card 480).
     #[arg(long)]
     pub demos: Option<usize>,
@@ -76,8 +78,8 @@ pub enum DatagenCommand {
     /// Rebuild DIR/manifest.json from DIR/demos (after copying shards together).
     Index {
         /// Task: screwdriver or card.
-        #[arg(long)]
-        task: String,
+        #[arg(long, value_parser = named::<SceneKind>())]
+        task: SceneKind,
         /// The dataset directory.
         #[arg(long)]
         data: PathBuf,
@@ -88,8 +90,8 @@ pub enum DatagenCommand {
     /// manifest.json is rebuilt.
     Merge {
         /// Task: screwdriver or card.
-        #[arg(long)]
-        task: String,
+        #[arg(long, value_parser = named::<SceneKind>())]
+        task: SceneKind,
         /// The merged dataset's directory (may be one of SOURCES).
         #[arg(long)]
         out: PathBuf,
@@ -101,16 +103,11 @@ pub enum DatagenCommand {
     },
 }
 
-fn parse_task(name: &str) -> anyhow::Result<SceneKind> {
-    SceneKind::from_name(name)
-        .with_context(|| format!("unknown task {name:?}; available: screwdriver, card"))
-}
-
 /// Run `dips datagen`.
 pub fn run(args: DatagenArgs) -> anyhow::Result<()> {
     match &args.command {
         Some(DatagenCommand::Index { task, data }) => {
-            let manifest = index(data, parse_task(task)?)?;
+            let manifest = index(data, *task)?;
             crate::output::line(&serde_json::to_string_pretty(&manifest)?)?;
             return Ok(());
         }
@@ -120,13 +117,13 @@ pub fn run(args: DatagenArgs) -> anyhow::Result<()> {
             sources,
             allow_missing,
         }) => {
-            let report = dips_datagen::merge(parse_task(task)?, out, sources, *allow_missing)?;
+            let report = dips_datagen::merge(*task, out, sources, *allow_missing)?;
             crate::output::line(&serde_json::to_string_pretty(&report)?)?;
             return Ok(());
         }
         None => {}
     }
-    let task = parse_task(args.task.as_deref().context("--task is required")?)?;
+    let task = args.task.context("--task is required")?;
     let out = args.out.clone().context("--out DIR is required")?;
     if out.is_file() {
         anyhow::bail!("--out {} is a file; give a directory", out.display());

@@ -17,18 +17,18 @@ use dips_host::scenes::SceneKind;
 use dips_link::{KernelTarget, RemotePlanner};
 
 use crate::model::EngineArg;
-use crate::search_args::SearchArgs;
+use crate::search_args::{SearchArgs, named};
 
 /// Arguments of `dips episode`.
 #[derive(Debug, Args)]
 pub struct EpisodeArgs {
     /// Task: `screwdriver` or `card`.
-    #[arg(long)]
-    pub task: String,
+    #[arg(long, value_parser = named::<SceneKind>())]
+    pub task: SceneKind,
     /// Method: dips, dips-sampled, csvto-sampled, dips-no-replan, dips-k1,
     /// dips-max-likelihood, diffusion-policy.
-    #[arg(long)]
-    pub method: String,
+    #[arg(long, value_parser = named::<Method>())]
+    pub method: Method,
     /// Seed of the episode (contact-sequence draw, search, samplers, CSVTO initialisation).
     #[arg(
         long,
@@ -79,18 +79,12 @@ pub struct EpisodeArgs {
 
 /// Run the command.
 pub fn run(args: EpisodeArgs, hands: &dyn Hands) -> anyhow::Result<()> {
-    let task = SceneKind::from_name(&args.task).with_context(|| {
-        format!(
-            "unknown task `{}` (expected screwdriver or card)",
-            args.task
-        )
-    })?;
-    let method = Method::from_name(&args.method)?;
+    let (task, method) = (args.task, args.method);
     if args.max_modes == Some(0) {
         bail!("--max-modes must be at least 1");
     }
     let time_budget_s = args.search.time_budget_s()?;
-    let sampler = args.search.sampler_config()?;
+    let sampler = args.search.sampler;
     let sequence: Option<Vec<Mode>> = match &args.modes {
         Some(names) => Some(
             names
@@ -115,12 +109,11 @@ pub fn run(args: EpisodeArgs, hands: &dyn Hands) -> anyhow::Result<()> {
     };
     let settings = OnlineSettings {
         time_budget_s,
-        node_budget: args.search.node_budget,
+        search: args.search.overrides(),
         sampler,
         sequence,
         max_modes: args.max_modes,
-        cost_to_come: args.search.cost_to_come(),
-        search_depth: args.depth.search_depth(),
+        search_depth: args.depth.search_depth,
     };
     let exec = ExecSettings::for_task(task);
     let kind = args.hand.kind();

@@ -16,6 +16,7 @@ use dips_host::planning::models_dir;
 use dips_host::scenes::SceneKind;
 
 use crate::model::EngineArg;
+use crate::search_args::named;
 
 /// Arguments of `dips eval`.
 #[derive(Debug, Args)]
@@ -25,13 +26,17 @@ pub struct EvalArgs {
     #[command(subcommand)]
     pub command: Option<EvalCommand>,
     /// Task: `screwdriver` or `card` (with `--protocol`, default: the protocol's).
-    #[arg(long, required_unless_present_any = ["summarize_only", "protocol"])]
-    pub task: Option<String>,
+    #[arg(
+        long,
+        required_unless_present_any = ["summarize_only", "protocol"],
+        value_parser = named::<SceneKind>()
+    )]
+    pub task: Option<SceneKind>,
     /// Comma-separated methods (default: the protocol's, else every method, in the paper's
     /// order): dips, dips-sampled, csvto-sampled, dips-no-replan, dips-k1,
     /// dips-max-likelihood, diffusion-policy.
-    #[arg(long, value_delimiter = ',')]
-    pub methods: Option<Vec<String>>,
+    #[arg(long, value_delimiter = ',', value_parser = named::<Method>())]
+    pub methods: Option<Vec<Method>>,
     /// Trials per method (default: the protocol's, else 10); trial `i` has seed
     /// `--first-seed + i` for every method. With `--summarize-only`, the trials expected in
     /// `--out`.
@@ -224,23 +229,18 @@ pub fn run(args: EvalArgs, hands: &dyn Hands) -> anyhow::Result<()> {
         .map(ProtocolFile::read)
         .transpose()?;
     let given = protocol.as_ref().map(|p| &p.protocol.eval);
-    let task_name = args
-        .task
-        .as_deref()
-        .or(given.map(|e| e.episode.task.as_str()))
-        .context("--task is required")?;
-    let task = SceneKind::from_name(task_name)
-        .with_context(|| format!("unknown task `{task_name}` (expected screwdriver or card)"))?;
+    let task: SceneKind = match (args.task, given) {
+        (Some(task), _) => task,
+        (None, Some(e)) => e.episode.task.parse()?,
+        (None, None) => anyhow::bail!("--task is required"),
+    };
     let methods = match (&args.methods, given) {
-        (Some(names), _) => names
-            .iter()
-            .map(|n| Method::from_name(n.trim()))
-            .collect::<anyhow::Result<Vec<_>>>()?,
+        (Some(methods), _) => methods.clone(),
         (None, Some(e)) => e
             .methods
             .iter()
-            .map(|n| Method::from_name(n))
-            .collect::<anyhow::Result<Vec<_>>>()?,
+            .map(|n| n.parse())
+            .collect::<Result<Vec<Method>, _>>()?,
         (None, None) => Method::ALL.to_vec(),
     };
     if args.write_protocol.is_some() && args.first_seed.is_none() {
@@ -280,15 +280,13 @@ pub fn run(args: EvalArgs, hands: &dyn Hands) -> anyhow::Result<()> {
         shard: crate::batch::resolve_shard(args.shard)?,
         jobs,
         model_threads,
-        sampler: args.search.sampler.clone(),
         online: OnlineSettings {
             time_budget_s: args.search.time_budget_s()?,
-            node_budget: args.search.node_budget,
-            sampler: args.search.sampler_config()?,
+            search: args.search.overrides(),
+            sampler: args.search.sampler,
             sequence: None,
             max_modes: args.max_modes,
-            cost_to_come: args.search.cost_to_come(),
-            search_depth: args.depth.search_depth(),
+            search_depth: args.depth.search_depth,
         },
         models: models_dir(args.models.as_deref(), task.task())?,
         engine: args.engine.into(),

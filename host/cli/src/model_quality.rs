@@ -24,8 +24,8 @@ pub const CARD_FILE: &str = "MODEL_CARD.md";
 #[derive(Debug, Args)]
 pub struct QualityArgs {
     /// Task: screwdriver or card.
-    #[arg(long)]
-    pub task: String,
+    #[arg(long, value_parser = crate::search_args::named::<SceneKind>())]
+    pub task: SceneKind,
     /// Models directory (with `train_report.json`; default: the shipped models).
     #[arg(long)]
     pub models: Option<PathBuf>,
@@ -58,8 +58,8 @@ pub struct QualityArgs {
 #[derive(Debug, Args)]
 pub struct CardArgs {
     /// Task: screwdriver or card.
-    #[arg(long)]
-    pub task: String,
+    #[arg(long, value_parser = crate::search_args::named::<SceneKind>())]
+    pub task: SceneKind,
     /// Models directory (with `train_report.json` and `quality.json`; default: the shipped
     /// models).
     #[arg(long)]
@@ -67,11 +67,6 @@ pub struct CardArgs {
     /// The command that made the models, quoted into the card.
     #[arg(long)]
     pub command: Option<String>,
-}
-
-fn scene(task: &str) -> anyhow::Result<SceneKind> {
-    SceneKind::from_name(task)
-        .with_context(|| format!("unknown task `{task}` (expected screwdriver or card)"))
 }
 
 fn read_json(path: &Path) -> anyhow::Result<Value> {
@@ -82,7 +77,7 @@ fn read_json(path: &Path) -> anyhow::Result<Value> {
 
 /// Run `dips model quality`.
 pub fn run_quality(args: QualityArgs) -> anyhow::Result<()> {
-    let scene = scene(&args.task)?;
+    let scene = args.task;
     let dir = models_dir(args.models.as_deref(), scene.task())?;
     if args.trajectories == 0 {
         bail!("--trajectories must be at least 1");
@@ -115,7 +110,7 @@ pub fn run_quality(args: QualityArgs) -> anyhow::Result<()> {
 
 /// Run `dips model card`.
 pub fn run_card(args: CardArgs) -> anyhow::Result<()> {
-    let scene = scene(&args.task)?;
+    let scene = args.task;
     let dir = models_dir(args.models.as_deref(), scene.task())?;
     let report = read_json(&dir.join(REPORT_FILE))?;
     let quality: QualityReport = {

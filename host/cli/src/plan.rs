@@ -11,10 +11,10 @@
 use std::path::PathBuf;
 use std::time::Instant;
 
-use anyhow::{Context, anyhow, bail};
+use anyhow::{anyhow, bail};
 use clap::{Args, ValueEnum};
 use dips_kernel::mode::Task;
-use dips_kernel::search::SearchConfig;
+use dips_kernel::search::{SearchConfig, SearchOverrides};
 use dips_kernel::session::PlanSpec;
 use dips_onnx::EngineKind;
 use serde_json::json;
@@ -41,8 +41,8 @@ pub enum PlanEngine {
 #[derive(Debug, Args)]
 pub struct PlanArgs {
     /// Task: `screwdriver` or `card`.
-    #[arg(long)]
-    pub task: String,
+    #[arg(long, value_parser = crate::search_args::named::<SceneKind>())]
+    pub task: SceneKind,
     /// Directory holding `denoiser.onnx`, `discriminator.onnx` and optionally `prior.json`
     /// (default: the shipped models, `onnx/models/<task>`, or `$DIPS_MODELS/<task>`).
     #[arg(long)]
@@ -86,18 +86,14 @@ pub struct PlanArgs {
 
 /// The search settings of `dips plan`: the task's own ([`SearchConfig::for_task`]: the
 /// screwdriver's α = 1e4, β = 1e3, depth 7; the card's α = 1e5, β = 0, depth 5) with the
-/// flags' changes.
+/// flags' changes, resolved by [`SearchOverrides::resolve`].
 pub fn search_config(task: Task, args: &PlanArgs) -> anyhow::Result<SearchConfig> {
-    let base = SearchConfig::for_task(task);
-    let config = SearchConfig {
-        k: args.k,
-        max_depth: args.depth.unwrap_or(base.max_depth),
-        node_budget: args.search.node_budget_or(&base),
-        time_budget_ms: args.search.time_budget_ms()?,
-        seed: args.seed,
-        cost_to_come: args.search.cost_to_come().unwrap_or(base.cost_to_come),
-        ..base
+    let overrides = SearchOverrides {
+        k: Some(args.k),
+        max_depth: args.depth,
+        ..args.search.overrides()
     };
+    let config = overrides.resolve(task, args.seed, args.search.time_budget_ms()?);
     config
         .validate()
         .map_err(|field| anyhow!("{field} (--k, --depth)"))?;
@@ -113,14 +109,9 @@ pub fn search_config(task: Task, args: &PlanArgs) -> anyhow::Result<SearchConfig
 
 /// Run the command.
 pub fn run(args: PlanArgs) -> anyhow::Result<()> {
-    let scene = SceneKind::from_name(&args.task).with_context(|| {
-        format!(
-            "unknown task `{}` (expected screwdriver or card)",
-            args.task
-        )
-    })?;
+    let scene = args.task;
     let task = scene.task();
-    let sampler = args.search.sampler_config()?;
+    let sampler = args.search.sampler;
     let config = search_config(task, &args)?;
 
     let world_state = World::new(scene).state();
@@ -195,7 +186,7 @@ pub fn run(args: PlanArgs) -> anyhow::Result<()> {
         "task": task.name(),
         "seed": args.seed,
         "engine": format!("{:?}", args.engine).to_lowercase(),
-        "sampler": args.search.sampler,
+        "sampler": sampler.method.to_string(),
         "models": dir.display().to_string(),
         "prior": prior_source,
         "goal": crate::bench::shortest(goal),
@@ -249,7 +240,7 @@ mod tests {
     }
 
     fn args(extra: &[&str]) -> PlanArgs {
-        let mut argv = vec!["dips-plan", "--task", "x"];
+        let mut argv = vec!["dips-plan", "--task", "card"];
         argv.extend_from_slice(extra);
         Cli::parse_from(argv).plan
     }

@@ -2,10 +2,96 @@
 //! one declaration, flattened into each command, so the four parse, check and document them
 //! the same way.
 
-use clap::{Args, ValueEnum};
-use dips_host::online::SearchDepth;
+use std::ffi::OsStr;
+use std::fmt::Display;
+use std::marker::PhantomData;
+use std::str::FromStr;
+
+use clap::Args;
+use clap::builder::{PossibleValue, TypedValueParser};
+use dips_host::online::{Method, SearchDepth};
+use dips_host::scenes::SceneKind;
 use dips_kernel::diffusion::SamplerConfig;
-use dips_kernel::search::CostToCome;
+use dips_kernel::mode::Task;
+use dips_kernel::search::{CostToCome, SearchOverrides};
+
+/// A domain value that the command line reads with its own `FromStr` (whose error names the
+/// value and the allowed ones) and lists in `--help` by its names.
+pub trait Named: FromStr<Err: Display> + Clone + Send + Sync + 'static {
+    /// Every name `FromStr` reads.
+    const NAMES: &'static [&'static str];
+    /// What each name means, in [`Named::NAMES`] order, for `--help` (empty: none).
+    const HELP: &'static [&'static str] = &[];
+}
+
+impl Named for Task {
+    const NAMES: &'static [&'static str] = &Task::NAMES;
+}
+
+impl Named for SceneKind {
+    const NAMES: &'static [&'static str] = &Task::NAMES;
+}
+
+impl Named for Method {
+    const NAMES: &'static [&'static str] = &Method::NAMES;
+}
+
+impl Named for CostToCome {
+    const NAMES: &'static [&'static str] = &CostToCome::NAMES;
+    const HELP: &'static [&'static str] = &[
+        "`g` = the sum of the expected segment costs along the sequence (the paper's equation)",
+        "`g` = the expected cost of the last segment only (the authors' code)",
+    ];
+}
+
+impl Named for SearchDepth {
+    const NAMES: &'static [&'static str] = &SearchDepth::NAMES;
+    const HELP: &'static [&'static str] = &[
+        "The task's mode limit on every call (the paper's screwdriver: 7 throughout)",
+        "The modes the episode has left (the paper's card)",
+    ];
+}
+
+/// clap's parser of a [`Named`] value (`value_parser = named::<SceneKind>()`): the value's
+/// `FromStr`, its message as the error, its names as the possible values of `--help`.
+#[derive(Debug)]
+pub struct NamedParser<T>(PhantomData<fn() -> T>);
+
+impl<T> Clone for NamedParser<T> {
+    fn clone(&self) -> Self {
+        Self(PhantomData)
+    }
+}
+
+/// The parser of a [`Named`] value.
+pub fn named<T: Named>() -> NamedParser<T> {
+    NamedParser(PhantomData)
+}
+
+impl<T: Named> TypedValueParser for NamedParser<T> {
+    type Value = T;
+
+    fn parse_ref(
+        &self,
+        cmd: &clap::Command,
+        _arg: Option<&clap::Arg>,
+        value: &OsStr,
+    ) -> Result<T, clap::Error> {
+        let text = value.to_string_lossy();
+        text.trim().parse::<T>().map_err(|e| {
+            clap::Error::raw(clap::error::ErrorKind::InvalidValue, format!("{e}\n")).with_cmd(cmd)
+        })
+    }
+
+    fn possible_values(&self) -> Option<Box<dyn Iterator<Item = PossibleValue> + '_>> {
+        Some(Box::new(T::NAMES.iter().enumerate().map(
+            |(i, name)| match T::HELP.get(i) {
+                Some(help) => PossibleValue::new(name).help(*help),
+                None => PossibleValue::new(name),
+            },
+        )))
+    }
+}
 
 /// The sampler of `dips episode`, `dips eval`, `dips plan` and `dips bench plan` when none
 /// is given: the paper's ancestral DDPM (posterior noise × 0.5) over 16 strided steps, 16
@@ -66,43 +152,6 @@ pub fn parse_budget_s(s: &str) -> Result<f64, String> {
     }
 }
 
-/// How the search forms the cost-to-come `g` (`--cost-to-come`).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
-pub enum CostToComeArg {
-    /// `g` = the sum of the expected segment costs along the sequence (the paper's equation).
-    Cumulative,
-    /// `g` = the expected cost of the last segment only (the authors' code).
-    LastSegment,
-}
-
-impl From<CostToComeArg> for CostToCome {
-    fn from(c: CostToComeArg) -> Self {
-        match c {
-            CostToComeArg::Cumulative => Self::Cumulative,
-            CostToComeArg::LastSegment => Self::LastSegment,
-        }
-    }
-}
-
-/// How deep an episode's planning calls search (`--search-depth` of `dips episode` and
-/// `dips eval`).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
-pub enum SearchDepthArg {
-    /// The task's mode limit on every call (the paper's screwdriver: 7 throughout).
-    Fixed,
-    /// The modes the episode has left (the paper's card).
-    ModesLeft,
-}
-
-impl From<SearchDepthArg> for SearchDepth {
-    fn from(d: SearchDepthArg) -> Self {
-        match d {
-            SearchDepthArg::Fixed => Self::Fixed,
-            SearchDepthArg::ModesLeft => Self::ModesLeft,
-        }
-    }
-}
-
 /// The search depth flag of `dips episode` and `dips eval` (a single planning call,
 /// `dips plan`, takes `--depth` instead).
 #[derive(Debug, Clone, Args)]
@@ -110,15 +159,8 @@ pub struct DepthArgs {
     /// How deep each planning call searches: `fixed` (the task's mode limit on every call,
     /// the paper's screwdriver) or `modes-left` (the modes the episode has left, the paper's
     /// card). Default: the task's (`docs/online.md`, "Search depth").
-    #[arg(long, value_enum)]
-    pub search_depth: Option<SearchDepthArg>,
-}
-
-impl DepthArgs {
-    /// `--search-depth` when given; `None` leaves the task's.
-    pub fn search_depth(&self) -> Option<SearchDepth> {
-        self.search_depth.map(Into::into)
-    }
+    #[arg(long, value_parser = named::<SearchDepth>())]
+    pub search_depth: Option<SearchDepth>,
 }
 
 /// The flags that set how a planning call searches, beyond the task's own settings.
@@ -127,7 +169,7 @@ pub struct SearchArgs {
     /// Diffusion sampler of the search (and of CSVTO's initialisation in episodes): `ddpm`
     /// (the paper's 256 steps), `ddpm:STEPS` or `ddim:STEPS[:ETA]`.
     #[arg(long, default_value = DEFAULT_SAMPLER)]
-    pub sampler: String,
+    pub sampler: SamplerConfig,
     /// Wall-clock budget of each planning call in seconds (0: none; the paper's: 300).
     #[arg(
         long,
@@ -142,14 +184,20 @@ pub struct SearchArgs {
     pub node_budget: Option<u32>,
     /// How the search forms the cost-to-come `g`: `cumulative` (the paper's equation) or
     /// `last-segment` (the authors' code). Default: the task's (`docs/search.md`).
-    #[arg(long, value_enum)]
-    pub cost_to_come: Option<CostToComeArg>,
+    #[arg(long, value_parser = named::<CostToCome>())]
+    pub cost_to_come: Option<CostToCome>,
 }
 
 impl SearchArgs {
-    /// `--sampler` parsed ([`dips_host::planning::parse_sampler`]).
-    pub fn sampler_config(&self) -> anyhow::Result<SamplerConfig> {
-        dips_host::planning::parse_sampler(&self.sampler)
+    /// The search settings these flags give over the task's ([`SearchOverrides`]: the node
+    /// budget and the cost-to-come; `None`: the task's), resolved by
+    /// [`SearchOverrides::resolve`].
+    pub fn overrides(&self) -> SearchOverrides {
+        SearchOverrides {
+            node_budget: self.node_budget,
+            cost_to_come: self.cost_to_come,
+            ..SearchOverrides::default()
+        }
     }
 
     /// `--time-budget-s` as checked seconds ([`dips_host::online::check_time_budget_s`]).
@@ -161,16 +209,6 @@ impl SearchArgs {
     /// ([`dips_host::online::time_budget_ms`]).
     pub fn time_budget_ms(&self) -> anyhow::Result<u32> {
         Ok(dips_host::online::time_budget_ms(self.time_budget_s()?))
-    }
-
-    /// `--node-budget` when given, else the task's ([`dips_kernel::search::SearchConfig::for_task`]).
-    pub fn node_budget_or(&self, base: &dips_kernel::search::SearchConfig) -> u32 {
-        self.node_budget.unwrap_or(base.node_budget)
-    }
-
-    /// `--cost-to-come` when given; `None` leaves the task's.
-    pub fn cost_to_come(&self) -> Option<CostToCome> {
-        self.cost_to_come.map(Into::into)
     }
 }
 
@@ -194,22 +232,18 @@ mod tests {
     #[test]
     fn defaults_are_the_papers_budget_and_the_fast_sampler() {
         let a = parse(&[]).unwrap();
-        assert_eq!(a.sampler, DEFAULT_SAMPLER);
+        assert_eq!(a.sampler.method.to_string(), DEFAULT_SAMPLER);
         assert_eq!(a.time_budget_ms().unwrap(), 300_000);
         assert_eq!(a.node_budget, None);
-        use dips_kernel::mode::Task;
-        use dips_kernel::search::SearchConfig;
-        let (sd, card) = (
-            SearchConfig::for_task(Task::Screwdriver),
-            SearchConfig::for_task(Task::Card),
-        );
-        assert_eq!(a.node_budget_or(&sd), 13, "the screwdriver's own budget");
-        assert_eq!(a.node_budget_or(&card), 0);
-        assert_eq!(a.cost_to_come(), None);
+        let budget = |task| a.overrides().resolve(task, 0, 0).node_budget;
         assert_eq!(
-            a.sampler_config().unwrap(),
-            dips_host::planning::parse_sampler("ddpm:16").unwrap()
+            budget(Task::Screwdriver),
+            13,
+            "the screwdriver's own budget"
         );
+        assert_eq!(budget(Task::Card), 0);
+        assert_eq!(a.cost_to_come, None);
+        assert_eq!(a.sampler, DEFAULT_SAMPLER.parse::<SamplerConfig>().unwrap());
     }
 
     #[test]
@@ -227,12 +261,13 @@ mod tests {
         .unwrap();
         assert_eq!(a.time_budget_ms().unwrap(), 250);
         assert_eq!(a.node_budget, Some(7));
-        let sd = dips_kernel::search::SearchConfig::for_task(dips_kernel::mode::Task::Screwdriver);
-        assert_eq!(a.node_budget_or(&sd), 7, "a given budget wins");
+        let sd = |a: &SearchArgs| a.overrides().resolve(Task::Screwdriver, 0, 0);
+        assert_eq!(sd(&a).node_budget, 7, "a given budget wins");
         let none = parse(&["--node-budget", "0"]).unwrap();
-        assert_eq!(none.node_budget_or(&sd), 0, "0 lifts the task's budget");
-        assert_eq!(a.cost_to_come(), Some(CostToCome::LastSegment));
-        assert!(a.sampler_config().is_ok());
+        assert_eq!(sd(&none).node_budget, 0, "0 lifts the task's budget");
+        assert_eq!(a.cost_to_come, Some(CostToCome::LastSegment));
+        assert_eq!(sd(&a).cost_to_come, CostToCome::LastSegment);
+        assert_eq!(a.sampler, SamplerConfig::ddim(8));
 
         for bad in ["-1", "inf", "NaN"] {
             let e = parse(&["--time-budget-s", bad]).unwrap_err().to_string();
@@ -240,13 +275,13 @@ mod tests {
         }
         let e = parse(&["--node-budget", "-1"]).unwrap_err().to_string();
         assert!(e.contains("--node-budget") && e.contains("from 0"), "{e}");
-        let e = parse(&["--sampler", "ddim"])
-            .unwrap()
-            .sampler_config()
-            .unwrap_err()
-            .to_string();
+        let e = parse(&["--sampler", "ddim"]).unwrap_err().to_string();
         assert!(e.contains("--sampler"), "{e}");
-        assert!(parse(&["--cost-to-come", "sum"]).is_err());
+        let e = parse(&["--cost-to-come", "sum"]).unwrap_err().to_string();
+        assert!(
+            e.contains("unknown cost-to-come `sum` (expected cumulative or last-segment)"),
+            "{e}"
+        );
     }
 
     #[derive(Debug, Parser)]
@@ -260,7 +295,7 @@ mod tests {
         let depth = |extra: &[&str]| {
             let mut argv = vec!["dips-x"];
             argv.extend_from_slice(extra);
-            DepthCli::try_parse_from(argv).map(|c| c.depth.search_depth())
+            DepthCli::try_parse_from(argv).map(|c| c.depth.search_depth)
         };
         assert_eq!(depth(&[]).unwrap(), None);
         assert_eq!(

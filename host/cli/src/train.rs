@@ -12,8 +12,8 @@ use dips_train::{RunOptions, TrainSettings};
 #[derive(Debug, Args)]
 pub struct TrainArgs {
     /// Task: screwdriver or card.
-    #[arg(long)]
-    pub task: String,
+    #[arg(long, value_parser = crate::search_args::named::<Task>())]
+    pub task: Task,
     /// Dataset directory (from `dips datagen`).
     #[arg(long)]
     pub data: PathBuf,
@@ -53,9 +53,7 @@ pub struct TrainArgs {
 
 /// Run `dips train`.
 pub fn run(args: TrainArgs) -> anyhow::Result<()> {
-    let task = Task::from_name(&args.task).map_err(|_| {
-        anyhow::anyhow!("unknown task {:?}; available: screwdriver, card", args.task)
-    })?;
+    let task = args.task;
     let mut settings = match &args.settings {
         Some(p) => {
             let text = std::fs::read_to_string(p)

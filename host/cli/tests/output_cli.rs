@@ -50,7 +50,8 @@ fn user_errors_print_no_backtrace() {
         .output()
         .unwrap();
     let err = String::from_utf8_lossy(&out.stderr);
-    assert_eq!(out.status.code(), Some(1), "{err}");
+    // A bad flag value is a usage error, refused by the flag's parser (exit status 2).
+    assert_eq!(out.status.code(), Some(2), "{err}");
     assert!(err.starts_with("error: unknown task `pen`"), "{err}");
     assert!(!err.to_lowercase().contains("backtrace"), "{err}");
 }

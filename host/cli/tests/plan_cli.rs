@@ -146,7 +146,7 @@ fn each_task_plans_with_its_own_search_settings() {
     }
     let err = plan(&["--task", "card", "--cost-to-come", "sum"]).unwrap_err();
     assert!(
-        err.contains("'sum'") && err.contains("cumulative") && err.contains("last-segment"),
+        err.contains("`sum`") && err.contains("cumulative") && err.contains("last-segment"),
         "{err}"
     );
 }

@@ -6,9 +6,8 @@ use anyhow::{Context, bail};
 use dips_batch::{ProgressMode, Shard};
 use dips_host::hand::{HandKind, TrackerNoise};
 use dips_host::online::{Method, OnlineSettings, SearchDepth, check_time_budget_s};
-use dips_host::planning::parse_sampler;
 use dips_host::scenes::SceneKind;
-use dips_kernel::search::{CostToCome, SearchConfig};
+use dips_kernel::search::CostToCome;
 use dips_link::KernelTarget;
 use dips_onnx::EngineKind;
 use serde::{Deserialize, Serialize};
@@ -106,9 +105,7 @@ pub struct EvalSettings {
     pub jobs: usize,
     /// Threads of each model call inside an episode ([`dips_host::planning::Models::set_threads`]).
     pub model_threads: usize,
-    /// Sampler name, as given (`ddpm` or `ddim:S`).
-    pub sampler: String,
-    /// Planning budgets and the mode limit.
+    /// The sampler, the search's settings over the task's, the budgets and the mode limit.
     pub online: OnlineSettings,
     /// Models directory.
     pub models: PathBuf,
@@ -162,7 +159,6 @@ impl EvalSettings {
         if self.online.max_modes == Some(0) {
             bail!("--max-modes must be at least 1");
         }
-        parse_sampler(&self.sampler)?;
         if matches!(self.kernel, KernelTarget::Tcp(_)) && self.jobs > 1 {
             bail!(
                 "--kernel {}: a TCP kernel serves one connection at a time; use --jobs 1, or \
@@ -199,29 +195,19 @@ impl EvalSettings {
         }
     }
 
-    /// The settings every episode of the directory must share.
+    /// The settings every episode of the directory must share: the search's as its planning
+    /// calls resolve them ([`SearchOverrides::resolve`](dips_kernel::search::SearchOverrides::resolve)).
     pub fn episode_settings(&self) -> EpisodeSettings {
+        let task = self.task.task();
+        let search = self.online.search.resolve(task, 0, 0);
         EpisodeSettings {
             task: self.task.name().to_string(),
-            sampler: self.sampler.clone(),
+            sampler: self.online.sampler.method.to_string(),
             time_budget_s: self.online.time_budget_s,
-            node_budget: self
-                .online
-                .node_budget
-                .unwrap_or(SearchConfig::for_task(self.task.task()).node_budget),
+            node_budget: search.node_budget,
             max_modes: self.online.max_modes,
-            cost_to_come: self
-                .online
-                .cost_to_come
-                .unwrap_or(SearchConfig::for_task(self.task.task()).cost_to_come)
-                .name()
-                .to_string(),
-            search_depth: self
-                .online
-                .search_depth
-                .unwrap_or(SearchDepth::for_task(self.task))
-                .name()
-                .to_string(),
+            cost_to_come: search.cost_to_come.name().to_string(),
+            search_depth: self.online.depth_rule(self.task).name().to_string(),
             models: std::path::absolute(&self.models)
                 .unwrap_or_else(|_| self.models.clone())
                 .display()
@@ -268,13 +254,11 @@ pub fn read_eval_file(dir: &Path) -> anyhow::Result<Option<EvalFile>> {
         )
     })?;
     if file.episode.search_depth.is_empty() {
-        let scene = SceneKind::from_name(&file.episode.task).with_context(|| {
-            format!(
-                "{}: unknown task `{}` (expected screwdriver or card)",
-                path.display(),
-                file.episode.task
-            )
-        })?;
+        let scene: SceneKind = file
+            .episode
+            .task
+            .parse()
+            .map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
         file.episode.search_depth = depth_before_recorded(scene).name().to_string();
     }
     Ok(Some(file))

@@ -11,7 +11,7 @@ use dips_host::online::{Method, OnlineSettings, SearchDepth};
 use dips_host::planning::{default_models_dir, parse_sampler};
 use dips_host::scenes::SceneKind;
 use dips_kernel::mode::Task;
-use dips_kernel::search::{CostToCome, SearchConfig};
+use dips_kernel::search::{CostToCome, SearchConfig, SearchOverrides};
 use dips_onnx::EngineKind;
 
 fn scratch(name: &str) -> PathBuf {
@@ -29,14 +29,15 @@ fn settings(methods: Vec<Method>, trials: usize) -> EvalSettings {
         shard: Shard::ALL,
         jobs: 2,
         model_threads: 1,
-        sampler: "ddim:8".into(),
         online: OnlineSettings {
             time_budget_s: 60.0,
-            node_budget: Some(3),
+            search: SearchOverrides {
+                node_budget: Some(3),
+                ..SearchOverrides::default()
+            },
             sampler: parse_sampler("ddim:8").unwrap(),
             sequence: None,
             max_modes: Some(1),
-            cost_to_come: None,
             search_depth: None,
         },
         models: default_models_dir(Task::Card).unwrap(),
@@ -124,13 +125,13 @@ fn a_killed_eval_resumes_without_redoing_episodes() {
 
     // Other settings in the same directory are refused, naming eval.json.
     let mut other = settings(vec![Method::CsvtoSampled], 3);
-    other.sampler = "ddpm".into();
+    other.online.sampler = parse_sampler("ddpm").unwrap();
     let err = run_eval(&other, &dir).unwrap_err().to_string();
     assert!(err.contains("eval.json"), "{err}");
     // So is the other form of the search's cost-to-come than the task's.
     let mut other = settings(vec![Method::CsvtoSampled], 3);
     let task_form = SearchConfig::for_task(Task::Card).cost_to_come;
-    other.online.cost_to_come = CostToCome::ALL.into_iter().find(|&c| c != task_form);
+    other.online.search.cost_to_come = CostToCome::ALL.into_iter().find(|&c| c != task_form);
     let err = run_eval(&other, &dir).unwrap_err().to_string();
     assert!(err.contains("eval.json"), "{err}");
     // And the other search depth rule.
@@ -232,7 +233,6 @@ fn shards_in_two_directories_merge_into_one_evaluation() {
     assert_eq!(summarize(&merged).unwrap().trials.len(), 2);
     // A shard run with another sampler is named, with the setting that differs.
     let mut other = settings(vec![Method::CsvtoSampled], 2);
-    other.sampler = "ddim:4".into();
     other.online.sampler = parse_sampler("ddim:4").unwrap();
     other.stop_after = Some(0); // its eval.json is all the merge reads first
     let odd = root.join("odd");

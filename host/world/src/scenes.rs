@@ -39,6 +39,23 @@ impl From<SceneKind> for Task {
     }
 }
 
+impl std::str::FromStr for SceneKind {
+    type Err = dips_kernel::name::UnknownValue;
+
+    /// A scene by its task's name (`screwdriver`, `card`): the kernel's [`Task`] `FromStr`,
+    /// whose error names the value and the tasks.
+    fn from_str(name: &str) -> Result<Self, Self::Err> {
+        name.parse::<Task>().map(SceneKind::from)
+    }
+}
+
+impl std::fmt::Display for SceneKind {
+    /// The task's name.
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
 impl PartialEq<Task> for SceneKind {
     fn eq(&self, task: &Task) -> bool {
         self.task() == *task
