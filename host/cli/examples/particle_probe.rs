@@ -94,8 +94,7 @@ fn probe() -> anyhow::Result<()> {
         let text = std::fs::read_to_string(file).with_context(|| file.display().to_string())?;
         let r: serde_json::Value = serde_json::from_str(&text)?;
         let task_name = r["task"].as_str().context("no task")?.to_string();
-        let task =
-            Task::from_name(&task_name).map_err(|_| anyhow::anyhow!("unknown task {task_name}"))?;
+        let task = task_name.parse::<Task>()?;
         if !sessions.contains_key(&task_name) {
             let dir = models_dir(models_arg.as_deref(), task)?;
             let models = Models::load(dips_onnx::EngineKind::Kernel, &dir, task)?;

@@ -85,8 +85,7 @@ fn run() -> anyhow::Result<()> {
         }
     }
     let data = data.context("--data DIR is required")?;
-    let task =
-        Task::from_name(&task_name).map_err(|_| anyhow::anyhow!("unknown task {task_name}"))?;
+    let task = task_name.parse::<Task>()?;
     let dims = task.dims();
     let (td, sd, f) = (dims.floats(), dims.state_dim, dims.fingers);
     let dir = models_dir(models_arg.as_deref(), task)?;

@@ -197,12 +197,9 @@ pub fn summarize(dir: &Path) -> anyhow::Result<Summary> {
     let eval =
         read_eval_file(dir)?.with_context(|| format!("{} holds no eval.json", dir.display()))?;
     let task = eval.episode.task.clone();
-    let scene = SceneKind::from_name(&task).with_context(|| {
-        format!(
-            "{}: unknown task {task:?} (expected screwdriver or card)",
-            dir.join("eval.json").display()
-        )
-    })?;
+    let scene: SceneKind = task
+        .parse()
+        .map_err(|e| anyhow::anyhow!("{}: {e}", dir.join("eval.json").display()))?;
     let registration = read_registration(dir)?;
     let mut trials = Vec::new();
     let mut methods = Vec::new();

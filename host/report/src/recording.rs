@@ -118,12 +118,9 @@ impl EpisodeFile {
 
     /// The task.
     pub fn scene(&self) -> Result<SceneKind, ReportError> {
-        SceneKind::from_name(&self.task).ok_or_else(|| ReportError::Input {
+        self.task.parse().map_err(|e| ReportError::Input {
             path: String::new(),
-            reason: format!(
-                "unknown task {:?} (expected screwdriver or card)",
-                self.task
-            ),
+            reason: format!("{e}"),
         })
     }
 
