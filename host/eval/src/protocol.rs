@@ -50,9 +50,6 @@ pub enum ProtocolError {
         #[source]
         source: std::io::Error,
     },
-    /// A shared directory's file could not be written.
-    #[error(transparent)]
-    Write(#[from] dips_batch::BatchError),
     /// The file is not JSON of a protocol's shape.
     #[error("{path} is not a protocol file: {source}")]
     Json {
