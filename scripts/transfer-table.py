@@ -133,17 +133,16 @@ for task in TASKS:
                               "episode_wall_mujoco_over_world": wall}
 
     print(f"\n### {task} ({unit}; lower is better)\n")
-    print("| method | " + " | ".join(
-        f"{arm}: valid · success · mean ± SE · mean valid · median" for arm in arms) + " |")
+    print("mean ± SE over all trials (valid, success); median\n")
+    print("| method | " + " | ".join(arms) + " |")
     print("|---|" + "---|" * len(arms))
     for m in METHODS:
         cells = []
         for arm, a in arms.items():
             r = a["methods"].get(m)
             cells.append("—" if r is None else
-                         f"{r['valid']}/{r['trials']} · {r['success']}/{r['trials']} · "
-                         f"{fmt(r['mean'], nd)} ± {fmt(r['se'], nd)} · "
-                         f"{fmt(r['mean_valid'], nd)} · {fmt(r['median'], nd)}")
+                         f"{fmt(r['mean'], nd)} ± {fmt(r['se'], nd)} ({r['valid']}/{r['trials']}, "
+                         f"{r['success']}/{r['trials']}); {fmt(r['median'], nd)}")
         print(f"| {m} | " + " | ".join(cells) + " |")
     print("\npaired dips − method (mean ± SE, seeds dips did better):")
     for arm, a in arms.items():
