@@ -15,10 +15,17 @@ sets=("$@")
 [[ -x $bin ]] || { echo "error: $bin is missing: cargo build --release -p dips-cli" >&2; exit 1; }
 for set in "${sets[@]}"; do
     for seed in 0 1 2; do
+        out=docs/results/screwdriver/models-$set-seed$seed
+        # A finished run keeps only its median episodes in git: resuming it would run the
+        # others again (same outcomes, hours of work), so a run with results.json is skipped.
+        if [[ -f $out/results.json ]]; then
+            echo "models-$set-seed$seed: finished ($out/results.json), skipped"
+            continue
+        fi
         models=onnx/models/screwdriver
         [[ $seed == 0 ]] || models=$models-seed$seed
         "$bin" eval --protocol "docs/results/protocols/screwdriver-models-$set-seed$seed.json" \
-            --out "docs/results/screwdriver/models-$set-seed$seed" --jobs 1 --model-threads 1 \
+            --out "$out" --jobs 1 --model-threads 1 \
             --animate none --episode-reports medians --models "$models"
     done
 done
