@@ -25,6 +25,12 @@ lane() {
     local task=$1 arm
     shift
     for arm in "${arms[@]}"; do
+        # A finished run keeps only its median episodes in git; resuming it would run the
+        # others again, so a run with results.json is skipped.
+        if [[ -f docs/results/$task/transfer-10100-$arm/results.json ]]; then
+            echo "$task transfer-10100-$arm: finished, skipped"
+            continue
+        fi
         # shellcheck disable=SC2046
         "$bin" eval --protocol "docs/results/protocols/$task-transfer-10100-$arm.json" \
             --out "docs/results/$task/transfer-10100-$arm" --jobs 1 --model-threads 1 \
