@@ -723,6 +723,16 @@ impl ProtocolFile {
         settings: &EvalSettings,
         allow_uncommitted: bool,
     ) -> Result<Registration, ProtocolError> {
+        Ok(self.register_with_spending(settings, allow_uncommitted)?.0)
+    }
+
+    /// [`ProtocolFile::register`], with the committed registrations that spent the range
+    /// (file in the repository, registration) that its `spent_by` describes.
+    fn register_with_spending(
+        &self,
+        settings: &EvalSettings,
+        allow_uncommitted: bool,
+    ) -> Result<(Registration, Vec<(String, Registration)>), ProtocolError> {
         self.protocol.check_settings(settings)?;
         self.protocol.check_models(settings)?;
         let committed = match check_committed(&self.path) {
@@ -731,21 +741,27 @@ impl ProtocolFile {
             Err(e) => return Err(e),
         };
         let dir = dir_of(&self.path);
-        let mut spent_by = Vec::new();
+        let mut spending = Vec::new();
         if !self.protocol.tuning() {
             let registered_at = self.registered_at()?;
             for (file, r) in committed_registrations(&dir)? {
                 if self.spent_by(&r, registered_at.as_deref())? {
-                    spent_by.push(format!(
-                        "{file} ({} of {}, seeds {}–{})",
-                        r.status.name(),
-                        r.name,
-                        r.settings.first_seed,
-                        r.settings.first_seed + r.settings.trials.saturating_sub(1) as u64
-                    ));
+                    spending.push((file, r));
                 }
             }
         }
+        let spent_by: Vec<String> = spending
+            .iter()
+            .map(|(file, r)| {
+                format!(
+                    "{file} ({} of {}, seeds {}–{})",
+                    r.status.name(),
+                    r.name,
+                    r.settings.first_seed,
+                    r.settings.first_seed + r.settings.trials.saturating_sub(1) as u64
+                )
+            })
+            .collect();
         let status = if self.protocol.tuning() {
             RegistrationStatus::Tuning
         } else if !committed {
@@ -755,7 +771,7 @@ impl ProtocolFile {
         } else {
             RegistrationStatus::Registered
         };
-        Ok(Registration {
+        let registration = Registration {
             status,
             protocol: self.path.display().to_string(),
             name: self.protocol.name.clone(),
@@ -765,11 +781,10 @@ impl ProtocolFile {
             models: self.protocol.models.clone(),
             spent_by,
             later_runs: Vec::new(),
-        })
+        };
+        Ok((registration, spending))
     }
-}
 
-impl ProtocolFile {
     /// Whether the committed registration `r` spends this protocol's range: anything but
     /// tuning, of the same task on an overlapping seed range, whose run started after this
     /// protocol was committed in its present form (`registered_at`, the last commit that
@@ -830,7 +845,7 @@ impl ProtocolFile {
         allow_uncommitted: bool,
         out: &Path,
     ) -> Result<Registration, ProtocolError> {
-        let mut r = self.register(settings, allow_uncommitted)?;
+        let (mut r, spending) = self.register_with_spending(settings, allow_uncommitted)?;
         if r.status != RegistrationStatus::Rerun {
             return Ok(r);
         }
@@ -840,15 +855,11 @@ impl ProtocolFile {
         let ours =
             own.protocol_sha256 == self.sha256 && own.status == RegistrationStatus::Registered;
         let own_file = out.join(REGISTRATION_FILE);
-        let registered_at = self.registered_at()?;
-        let mut only_own = true;
-        for (file, c) in committed_registrations(&dir_of(&self.path))? {
-            if self.spent_by(&c, registered_at.as_deref())? {
-                only_own &= c.protocol_sha256 == self.sha256
-                    && c.status == RegistrationStatus::Registered
-                    && own_file.ends_with(&file);
-            }
-        }
+        let only_own = spending.iter().all(|(file, c)| {
+            c.protocol_sha256 == self.sha256
+                && c.status == RegistrationStatus::Registered
+                && own_file.ends_with(file)
+        });
         if ours && only_own {
             r.status = RegistrationStatus::Registered;
             r.spent_by.clear();
