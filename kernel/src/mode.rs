@@ -436,14 +436,6 @@ impl Task {
     /// Every task's name, in [`Task::ALL`] order.
     pub const NAMES: [&'static str; 2] = [Task::Screwdriver.name(), Task::Card.name()];
 
-    /// Parse a task name.
-    pub fn from_name(name: &str) -> Result<Self, UnknownName> {
-        Self::ALL
-            .into_iter()
-            .find(|t| t.name() == name)
-            .ok_or(UnknownName)
-    }
-
     /// Finger names in mode order.
     pub const fn finger_names(self) -> &'static [&'static str] {
         match self {
@@ -572,7 +564,7 @@ mod tests {
     #[test]
     fn names_round_trip() {
         for task in Task::ALL {
-            assert_eq!(Task::from_name(task.name()), Ok(task));
+            assert_eq!(task.name().parse::<Task>(), Ok(task));
             for (i, m) in task.modes().iter().enumerate() {
                 let id = task.mode_by_name(m.name).unwrap();
                 assert_eq!(id.index(), i);
@@ -590,7 +582,14 @@ mod tests {
             assert!(task.dims().state_dim <= MAX_STATE_DIM);
             assert_eq!(task.dims().fingers, task.finger_names().len());
         }
-        assert_eq!(Task::from_name("valve"), Err(UnknownName));
+        assert_eq!(
+            "valve".parse::<Task>(),
+            Err(crate::name::UnknownValue::new(
+                "task",
+                "valve",
+                &Task::NAMES
+            ))
+        );
         assert_eq!(Task::Card.mode_by_name("turn"), Err(UnknownName));
     }
 

@@ -44,7 +44,7 @@ impl TaskLayout {
 
 /// The layout of a known task, `None` for a name the contract does not define.
 pub fn task_layout(name: &str) -> Option<TaskLayout> {
-    Task::from_name(name).ok().map(TaskLayout::of)
+    name.parse::<Task>().ok().map(TaskLayout::of)
 }
 
 /// Names of the tasks the contract defines.

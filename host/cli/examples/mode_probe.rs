@@ -181,8 +181,11 @@ fn probe() -> anyhow::Result<()> {
             if setup.all_modes {
                 bail!("--all-modes probes the executed starts of result files, not --demos");
             }
-            let task = Task::from_name(task_arg.as_deref().unwrap_or("screwdriver"))
-                .map_err(|e| anyhow::anyhow!("--task: {e:?}"))?;
+            let task: Task = task_arg
+                .as_deref()
+                .unwrap_or("screwdriver")
+                .parse()
+                .map_err(|e| anyhow::anyhow!("--task: {e}"))?;
             probe_demos(&setup, task, &dir, &filter)
         }
         None if files.is_empty() => bail!(
@@ -205,8 +208,7 @@ fn probe_result(setup: &Setup, file: &Path) -> anyhow::Result<()> {
     let text =
         std::fs::read_to_string(file).with_context(|| format!("reading {}", file.display()))?;
     let r: serde_json::Value = serde_json::from_str(&text)?;
-    let task = Task::from_name(r["task"].as_str().context("no task")?)
-        .map_err(|e| anyhow::anyhow!("{e:?}"))?;
+    let task: Task = r["task"].as_str().context("no task")?.parse()?;
     let columns: Vec<&str> = r["state_columns"]
         .as_array()
         .map(|c| c.iter().filter_map(serde_json::Value::as_str).collect())

@@ -251,7 +251,8 @@ pub fn task_metric(scene: SceneKind, start: &[f64], state: &[f64]) -> f64 {
 }
 
 fn parse_scene(name: &str) -> Result<SceneKind, SimCliError> {
-    SceneKind::from_name(name).ok_or_else(|| SimCliError::Scene(name.to_string()))
+    name.parse::<SceneKind>()
+        .map_err(|_| SimCliError::Scene(name.to_string()))
 }
 
 fn read(path: &Path) -> Result<String, SimCliError> {

@@ -396,8 +396,9 @@ pub fn decode_demo(path: &Path, bytes: &[u8], task: Task) -> Result<DemoRecord> 
         )));
     }
     let task_name = key("task")?;
-    let file_task =
-        Task::from_name(task_name).map_err(|_| fmt(format!("task {task_name:?} is unknown")))?;
+    let file_task = task_name
+        .parse::<Task>()
+        .map_err(|_| fmt(format!("task {task_name:?} is unknown")))?;
     if file_task != task {
         return Err(fmt(format!(
             "task is {task_name:?}, expected {:?}",

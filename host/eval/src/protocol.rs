@@ -350,7 +350,7 @@ impl Protocol {
             return Err(invalid("name", "is empty".into()));
         }
         let e = &protocol.eval;
-        if SceneKind::from_name(&e.episode.task).is_none() {
+        if e.episode.task.parse::<SceneKind>().is_err() {
             return Err(invalid(
                 "eval.episode.task",
                 format!("is {:?}; expected screwdriver or card", e.episode.task),
@@ -398,7 +398,7 @@ impl Protocol {
 
     /// The protocol's task.
     pub fn task(&self) -> Option<SceneKind> {
-        SceneKind::from_name(&self.eval.episode.task)
+        self.eval.episode.task.parse().ok()
     }
 
     /// The protocol's methods, in table order (unknown names left out; [`Protocol::parse`]

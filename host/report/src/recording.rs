@@ -345,7 +345,7 @@ impl Recording {
         } else if value.get("states").is_some() {
             let traj: SimTrajectory = serde_json::from_value(value)
                 .map_err(|e| input_err(path, format!("not a `dips sim run` trajectory: {e}")))?;
-            let scene = SceneKind::from_name(&traj.scene).ok_or_else(|| {
+            let scene = traj.scene.parse::<SceneKind>().map_err(|_| {
                 input_err(
                     path,
                     format!(

@@ -50,11 +50,7 @@ fn replay(path: &str) -> Result<(SceneKind, String, Vec<Step>), String> {
     let text = std::fs::read_to_string(path).map_err(|e| format!("{path}: {e}"))?;
     let r: Value = serde_json::from_str(&text).map_err(|e| format!("{path}: {e}"))?;
     let task = r["task"].as_str().ok_or(format!("{path}: no task"))?;
-    let scene = match task {
-        "screwdriver" => SceneKind::Screwdriver,
-        "card" => SceneKind::Card,
-        t => return Err(format!("{path}: unknown task {t:?} (screwdriver, card)")),
-    };
+    let scene: SceneKind = task.parse().map_err(|e| format!("{path}: {e}"))?;
     let hand = r["hand"].as_str().unwrap_or("world").to_string();
     let a = scene.action_dim();
     let mut world = World::new(scene);

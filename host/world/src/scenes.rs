@@ -85,11 +85,6 @@ impl SceneKind {
         self.task().name()
     }
 
-    /// Parse a scene name.
-    pub fn from_name(name: &str) -> Option<SceneKind> {
-        Task::from_name(name).ok().map(SceneKind::from)
-    }
-
     /// The task's modes, in the kernel's table order.
     pub fn modes(self) -> &'static [TaskMode] {
         self.task().named_modes()

@@ -364,8 +364,10 @@ pub fn replay(path: &Path) -> Result<ReplayReport, HandError> {
             format!("format {:?}, expected {LOG_FORMAT:?}", header.format),
         ));
     }
-    let scene = SceneKind::from_name(&header.scene)
-        .ok_or_else(|| fmt(1, format!("unknown scene {:?}", header.scene)))?;
+    let scene = header
+        .scene
+        .parse::<SceneKind>()
+        .map_err(|_| fmt(1, format!("unknown scene {:?}", header.scene)))?;
     let params = header
         .params
         .clone()
