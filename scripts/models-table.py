@@ -10,31 +10,25 @@ paired within the model), and writes docs/results/screwdriver/models-10200.json.
 Usage: scripts/models-table.py [RESULTS_DIR]   (default docs/results/screwdriver)
 """
 import json
-import math
 import statistics as st
 import sys
 from pathlib import Path
+
+from paired import se, trials as read_trials
 
 root = Path(sys.argv[1] if len(sys.argv) > 1 else "docs/results/screwdriver")
 METHODS = ["dips", "dips-sampled", "csvto-sampled", "dips-no-replan", "dips-k1",
            "dips-max-likelihood", "diffusion-policy"]
 
 
-def se(xs):
-    return st.stdev(xs) / math.sqrt(len(xs)) if len(xs) > 1 else float("nan")
-
-
 def trials(seed):
     """(method, seed) → trial over the model's runs that exist, and their statuses."""
-    out, statuses = {}, {}
-    for first in (10200, 10210):
-        path = root / f"models-{first}-seed{seed}" / "results.json"
-        if path.exists():
-            r = json.loads(path.read_text())
-            statuses[str(first)] = r.get("registration", {}).get("status", "unregistered")
-            for t in r["trials"]:
-                out[(t["method"], t["seed"])] = t
-    return out, statuses
+    paths = [p for first in (10200, 10210)
+             if (p := root / f"models-{first}-seed{seed}" / "results.json").exists()]
+    statuses = {p.parent.name.split("-")[1]:
+                json.loads(p.read_text()).get("registration", {}).get("status", "unregistered")
+                for p in paths}
+    return read_trials(paths, "models-table.py"), statuses
 
 
 summary = {"models": {}, "pooled": {}}

@@ -22,6 +22,8 @@ import statistics as st
 import sys
 from pathlib import Path
 
+from paired import se, trials as read_trials
+
 root = Path(sys.argv[1] if len(sys.argv) > 1 else "docs/results")
 dest = Path(sys.argv[2] if len(sys.argv) > 2 else root / "transfer-10100.json")
 TASKS = ["screwdriver", "card"]
@@ -34,17 +36,12 @@ PAPER = {
 }
 
 
-def se(xs):
-    return st.stdev(xs) / math.sqrt(len(xs)) if len(xs) > 1 else float("nan")
-
-
 def load(task, arm):
     path = root / task / f"transfer-10100-{arm}" / "results.json"
     if not path.exists():
         return None, {}
-    r = json.loads(path.read_text())
-    status = r.get("registration", {}).get("status", "unregistered")
-    return status, {(t["method"], t["seed"]): t for t in r["trials"]}
+    status = json.loads(path.read_text()).get("registration", {}).get("status", "unregistered")
+    return status, read_trials([path], "transfer-table.py")
 
 
 def fmt(x, nd=3):
