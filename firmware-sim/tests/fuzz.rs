@@ -30,6 +30,7 @@ fn corpus() -> Vec<ToKernel> {
             goal: -1.0,
             settings: SearchSettings::default(),
             previous_mode: Some(1),
+            card_goals: Default::default(),
         }),
         ToKernel::SetPrior(PriorTable {
             task: Task::Card,

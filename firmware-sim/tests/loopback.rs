@@ -73,6 +73,7 @@ fn plan_request() -> ToKernel {
         goal: -0.06,
         settings: SearchSettings::default(),
         previous_mode: None,
+        card_goals: Default::default(),
     })
 }
 

@@ -84,6 +84,7 @@ fn endless_request() -> ToKernel {
             ..SearchSettings::default()
         },
         previous_mode: None,
+        card_goals: Default::default(),
     })
 }
 

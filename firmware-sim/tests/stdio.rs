@@ -163,6 +163,7 @@ fn binary_serves_tcp_connections_one_after_another() {
         goal: -0.06,
         settings: SearchSettings::default(),
         previous_mode: None,
+        card_goals: Default::default(),
     });
     let replies = exchange(vec![
         (1, plan.clone()),
@@ -216,6 +217,7 @@ fn binary_plans_with_models_uploaded_over_stdio() {
             ..SearchSettings::default()
         },
         previous_mode: Some(0),
+        card_goals: Default::default(),
     }));
     let mut input = Vec::new();
     for (i, body) in requests.into_iter().enumerate() {

@@ -27,6 +27,7 @@ use dips_kernel::prior::MarkovPrior;
 use dips_kernel::rng::KernelRng;
 use dips_kernel::search::{SearchConfig, SearchOverrides, SearchVariant};
 use dips_kernel::session::PlanSpec;
+use dips_kernel::task::CardGoals;
 
 use crate::execute::episode::{CARD_MODES, SCREWDRIVER_MODES};
 use crate::execute::{
@@ -280,7 +281,7 @@ pub fn diffusion_particles<H: Hand + ?Sized>(
             mode,
             horizon: settings.horizon,
             start: start.clone(),
-            goal: mode_goal(mode, &start),
+            goal: mode_goal(mode, &start, settings.card_goals),
         },
     )?;
     let engine = &mut models.denoiser;
@@ -343,6 +344,7 @@ fn plan_call<H: Hand + ?Sized>(
     executed: &[Mode],
     depth: u8,
     settings: &OnlineSettings,
+    card_goals: CardGoals,
     seed: u64,
 ) -> anyhow::Result<(Vec<Mode>, PlanRecord)> {
     let scene = hand.scene();
@@ -357,7 +359,8 @@ fn plan_call<H: Hand + ?Sized>(
     };
     let config = search_config(method, task, depth, settings, seed);
     let mut spec = PlanSpec::with_settings(task, &start, goal, config, prior)
-        .map_err(|e| anyhow!("planning call: {e}"))?;
+        .map_err(|e| anyhow!("planning call: {e}"))?
+        .with_card_goals(card_goals);
     spec.sampler = settings.sampler;
     spec.executed = executed.last().map(|m| m.id());
     spec.check().map_err(|e| anyhow!("planning call: {e}"))?;
@@ -456,6 +459,8 @@ pub fn run_online<H: Hand + ?Sized>(
             progress,
         )?;
         result.hand = hand_name;
+        result.card_goals = exec.card_goals;
+        result.card_goals = exec.card_goals;
         return Ok(result);
     }
     let mut rng = KernelRng::seed_from_u64(seed);
@@ -513,7 +518,15 @@ pub fn run_online<H: Hand + ?Sized>(
             ));
             let call_seed = seed.wrapping_mul(1000).wrapping_add(plans.len() as u64);
             let (modes, record) = plan_call(
-                planner, prior, method, hand, &executed, depth, settings, call_seed,
+                planner,
+                prior,
+                method,
+                hand,
+                &executed,
+                depth,
+                settings,
+                exec.card_goals,
+                call_seed,
             )?;
             progress(&if record.modes.is_empty() && record.nodes_expanded == 0 {
                 format!(
@@ -582,6 +595,7 @@ pub fn run_online<H: Hand + ?Sized>(
     );
     result.plans = plans;
     result.hand = hand_name;
+    result.card_goals = exec.card_goals;
     Ok(result)
 }
 

@@ -23,6 +23,7 @@ use dips_kernel::mode::Task;
 use dips_kernel::prior::MarkovPrior;
 use dips_kernel::search::{PaperPlanner, ParticleDiagnostics, Planner, SearchReport, SearchStatus};
 use dips_kernel::session::{PlanSpec, SessionError, SessionLayout, plan_with_engines};
+use dips_kernel::task::CardGoals;
 use dips_onnx::{AnyEngine, EngineKind, Expectation, Role};
 
 /// `std::time::Instant` as the kernel's clock (microseconds since `self.0`).
@@ -229,6 +230,39 @@ pub struct Models {
     /// (`dips.psi_negatives`: `ddpm:16+anchor` for the planner's anchored strided DDPM);
     /// `None` for models that do not say (trained before it was recorded).
     pub psi_negatives: Option<Vec<String>>,
+    /// The card goals the denoiser's demos were made with (`dips.card_goals`); `None` for
+    /// models that do not say (screwdriver models, and card models trained on ours before it
+    /// was recorded).
+    pub card_goals: Option<CardGoals>,
+}
+
+/// The card goals the denoiser in `dir` was trained for (`dips.card_goals`), `None` when it
+/// does not say.
+pub fn models_card_goals(dir: &Path) -> anyhow::Result<Option<CardGoals>> {
+    let file = dir.join(model_file(Role::Denoiser));
+    dips_onnx::contract::read_proto(&file)
+        .and_then(|p| dips_onnx::contract::card_goals(&p))
+        .with_context(|| format!("loading {}", file.display()))
+}
+
+/// The card goals of an episode or evaluation: `given` (`--card-goals`), else those the
+/// models (`(directory, goals)`, [`Models::trained_card_goals`]) were trained for, else ours.
+/// An error when `given` and the models' differ: a planner whose `J` and goal test aim
+/// elsewhere than its denoiser's pushes plans neither.
+pub fn resolve_card_goals(
+    given: Option<CardGoals>,
+    models: Option<(&Path, CardGoals)>,
+) -> anyhow::Result<CardGoals> {
+    match (given, models) {
+        (Some(g), Some((dir, trained))) if g != trained => bail!(
+            "--card-goals {g}: the models in {} were trained on demos with card goals \
+             {trained}; give --card-goals {trained}, or models trained with \
+             `dips datagen --card-goals {g}`",
+            dir.display()
+        ),
+        (_, Some((_, trained))) => Ok(trained),
+        (given, None) => Ok(given.unwrap_or_default()),
+    }
 }
 
 /// The name of the samples the planner draws for `task` with `config`: the sampler's name,
@@ -283,6 +317,12 @@ fn psi_mismatch(negatives: &[String], config: &SamplerConfig, task: Task) -> Opt
 }
 
 impl Models {
+    /// The card goals the denoiser was trained for (`dips.card_goals`), ours when it does not
+    /// say (every card model made before they could differ).
+    pub fn trained_card_goals(&self) -> CardGoals {
+        self.card_goals.unwrap_or_default()
+    }
+
     /// Check that a Ψ trained for the planner's own samples (`discriminator.planner_fakes`)
     /// scores the samples it was trained for: when its negatives name a planner sampler, the
     /// planner's (`config` with the task's start anchor, [`planner_sample_name`]) must be one
@@ -352,6 +392,7 @@ impl Models {
             denoiser: load_model(kind, dir, Role::Denoiser, task)?,
             discriminator: load_model(kind, dir, Role::Discriminator, task)?,
             prior,
+            card_goals: models_card_goals(dir)?,
             psi_negatives: {
                 let file = dir.join(model_file(Role::Discriminator));
                 dips_onnx::contract::read_proto(&file)

@@ -29,7 +29,7 @@ use crate::mode::{MAX_STATE_DIM, ModeId, Task};
 use crate::prior::MarkovPrior;
 use crate::search::config::ConfigError;
 use crate::search::{Planner, Problem, SearchConfig, SearchReport, SegmentSampler, SegmentScorer};
-use crate::task::{CARD_GOAL_Y, Objective, ScrewdriverObjective};
+use crate::task::{CARD_GOAL_Y, CardGoals, Objective, ScrewdriverObjective};
 
 /// Everything one planning call needs besides the models and the planner's memory.
 #[derive(Debug, Clone, PartialEq)]
@@ -102,7 +102,8 @@ impl PlanSpec {
         if start.len() != task.dims().state_dim || start.iter().any(|v| !v.is_finite()) {
             return Err(SpecError::StartState);
         }
-        let objective = Objective::for_goal(task, start, goal).ok_or(SpecError::Goal)?;
+        let objective =
+            Objective::for_goal(task, start, goal, CardGoals::default()).ok_or(SpecError::Goal)?;
         let spec = Self {
             task,
             search,
@@ -139,6 +140,23 @@ impl PlanSpec {
             o.reference_yaw = yaw + crate::task::wrap_angle(raw - yaw);
         }
         Ok(self)
+    }
+
+    /// The same call with the card's `goals` (where its pushes aim and its goal test; no
+    /// effect for the screwdriver).
+    pub fn with_card_goals(mut self, goals: CardGoals) -> Self {
+        if let Objective::Card(o) = &mut self.objective {
+            o.goals = goals;
+        }
+        self
+    }
+
+    /// The card's goals of this call ([`CardGoals::default`] for the screwdriver).
+    pub fn card_goals(&self) -> CardGoals {
+        match self.objective {
+            Objective::Card(o) => o.goals,
+            Objective::Screwdriver(_) => CardGoals::default(),
+        }
     }
 
     /// The same call with another seed.

@@ -55,6 +55,70 @@ pub const CARD_GOAL_Y: f32 = -0.06;
 /// node. Chosen on seeds 500–509 and bench calls 100–129 (`docs/search.md`).
 pub const CARD_GOAL_TOLERANCE_Y: f32 = 0.001;
 
+/// The card's goals, a named setting: where each push aims and when the search's goal test
+/// passes. Chosen per dataset (`dips datagen --card-goals`), recorded in the trained models'
+/// metadata (`dips.card_goals`), and the same for the planner's `J`, its goal test and the
+/// CSVTO that executes the plan (`docs/search.md`, "The card's goals").
+#[derive(
+    Debug, Clone, Copy, PartialEq, Eq, Hash, Default, serde::Serialize, serde::Deserialize,
+)]
+#[serde(rename_all = "lowercase")]
+pub enum CardGoals {
+    /// The paper's: every push (`index`, `middle`, `both`) aims 2 cm further than where it
+    /// starts, wherever that is, and the goal test is `ȳ ≤ o_G`.
+    Paper,
+    /// Ours (the default until the paper's models are shipped): a push never aims past
+    /// `o_G` ([`contact_goal`]) and the goal test passes within [`CARD_GOAL_TOLERANCE_Y`].
+    #[default]
+    Capped,
+}
+
+impl CardGoals {
+    /// Both settings.
+    pub const ALL: [CardGoals; 2] = [CardGoals::Paper, CardGoals::Capped];
+
+    /// The setting's name on the command line and in files: `paper` or `capped`.
+    pub const fn name(self) -> &'static str {
+        match self {
+            CardGoals::Paper => "paper",
+            CardGoals::Capped => "capped",
+        }
+    }
+
+    /// Both names, in [`CardGoals::ALL`] order.
+    pub const NAMES: [&'static str; 2] = [CardGoals::Paper.name(), CardGoals::Capped.name()];
+
+    /// Whether this is ours, the default ([`CardGoals::Capped`]).
+    pub fn is_capped(&self) -> bool {
+        *self == CardGoals::Capped
+    }
+
+    /// How near `o_G` the expected `ȳ` must come for the goal test (metres): 0 for the
+    /// paper's, [`CARD_GOAL_TOLERANCE_Y`] for ours.
+    pub const fn tolerance_y(self) -> f32 {
+        match self {
+            CardGoals::Paper => 0.0,
+            CardGoals::Capped => CARD_GOAL_TOLERANCE_Y,
+        }
+    }
+}
+
+impl core::str::FromStr for CardGoals {
+    type Err = crate::name::UnknownValue;
+
+    /// A setting by its name ([`CardGoals::name`]); the error names the value and both names.
+    fn from_str(name: &str) -> Result<Self, Self::Err> {
+        crate::name::UnknownValue::find("card goals", name, &Self::ALL, &Self::NAMES, Self::name)
+    }
+}
+
+impl core::fmt::Display for CardGoals {
+    /// The setting's name ([`CardGoals::name`]).
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
 /// Wrap an angle to `[−π, π]`.
 pub fn wrap_angle(a: f32) -> f32 {
     libm::remainderf(a, TAU)
@@ -163,10 +227,11 @@ impl GoalScalar for f64 {
 /// segment's start (spec §2.4): screwdriver with every finger in contact (turn)
 /// `(0, 0, yaw₀ − π/6)`, other screwdriver modes `(0, 0, yaw₀)`; card with a finger in contact
 /// `(0, y₀ − 0.02, 0)` but never past the task goal [`CARD_GOAL_Y`] (`(0, max(y₀ − 0.02,
-/// min(y₀, o_G)), 0)`), card without `o0` (the card stays).
+/// min(y₀, o_G)), 0)`) with [`CardGoals::Capped`] and `(0, y₀ − 0.02, 0)` with
+/// [`CardGoals::Paper`], card without `o0` (the card stays).
 ///
-/// **The push stops at the task goal** (our change; the paper's per-mode goal is a flat
-/// −2 cm): measured over the 60 card episodes of the first evaluation (`docs/decisions.md`,
+/// **With [`CardGoals::Capped`] the push stops at the task goal** (our change; the paper's
+/// per-mode goal is a flat −2 cm): measured over the 60 card episodes of the first evaluation (`docs/decisions.md`,
 /// "Card pushes never aim past the goal"), an executed push moves the
 /// card 1.7–1.9 cm, not 2, so three pushes end 3–8 mm short of `o_G`, the search's goal test
 /// (`ȳ ≤ o_G`) cannot stop there, and a full fourth push ended 0.7–1.6 cm past the goal in
@@ -177,13 +242,21 @@ impl GoalScalar for f64 {
 /// The card's pushes aim at `x = 0, θ = 0` as the authors' code does (spec §2.4, verified in
 /// their code); the host's CSVTO has always done so, and the search's `J` estimates the cost
 /// CSVTO will pay.
-pub fn contact_goal<R: GoalScalar>(task: Task, mode: ContactMode, o0: [R; 3]) -> [R; 3] {
+pub fn contact_goal<R: GoalScalar>(
+    task: Task,
+    mode: ContactMode,
+    o0: [R; 3],
+    card: CardGoals,
+) -> [R; 3] {
     let z = R::ZERO;
     match task {
         Task::Screwdriver if mode.contact_count() as usize == mode.fingers() => {
             [z, z, o0[2] + R::TURN_PER_MODE]
         }
         Task::Screwdriver => [z, z, o0[2]],
+        Task::Card if mode.contact_count() > 0 && card == CardGoals::Paper => {
+            [z, o0[1] + R::CARD_MOVE_PER_MODE, z]
+        }
         Task::Card if mode.contact_count() > 0 => {
             let push = o0[1] + R::CARD_MOVE_PER_MODE;
             // Never past o_G, and never back toward it once past it.
@@ -199,8 +272,8 @@ pub fn contact_goal<R: GoalScalar>(task: Task, mode: ContactMode, o0: [R; 3]) ->
 }
 
 /// The object goal of a named mode ([`contact_goal`]).
-pub fn mode_goal<R: GoalScalar>(mode: TaskMode, o0: [R; 3]) -> [R; 3] {
-    contact_goal(mode.task(), mode.contact_mode(), o0)
+pub fn mode_goal<R: GoalScalar>(mode: TaskMode, o0: [R; 3], card: CardGoals) -> [R; 3] {
+    contact_goal(mode.task(), mode.contact_mode(), o0, card)
 }
 
 /// Squared distance between poses, the angle wrapped.
@@ -211,9 +284,15 @@ fn pose_dist2(a: &[f32; 3], b: &[f32; 3]) -> f32 {
     d0 * d0 + d1 * d1 + d2 * d2
 }
 
-/// `J` of `mode` on a raw segment of `task` (see the module docs); NaN when the segment is
-/// shorter than `dims` says.
-pub fn segment_cost(task: Task, mode: ContactMode, dims: &SegmentDims, seg: &[f32]) -> f32 {
+/// `J` of `mode` on a raw segment of `task` (see the module docs), the card's push goals set
+/// by `card`; NaN when the segment is shorter than `dims` says.
+pub fn segment_cost(
+    task: Task,
+    mode: ContactMode,
+    dims: &SegmentDims,
+    seg: &[f32],
+    card: CardGoals,
+) -> f32 {
     let layout: RowLayout = task.layout();
     let w = CostWeights::of(task);
     let d = dims.dim();
@@ -226,7 +305,7 @@ pub fn segment_cost(task: Task, mode: ContactMode, dims: &SegmentDims, seg: &[f3
     let row = |t: usize| &seg[t * d..(t + 1) * d];
     let pose = |r: &[f32]| layout.pose(r).unwrap_or([f32::NAN; 3]);
     let o0 = pose(row(0));
-    let goal = contact_goal(task, mode, o0);
+    let goal = contact_goal(task, mode, o0, card);
     let in_contact = mode.contact_count() > 0;
     let upright_term = w.upright != 0.0;
 
@@ -320,7 +399,7 @@ impl TaskObjective for ScrewdriverObjective {
     }
 
     fn segment_cost(&self, mode: ContactMode, dims: &SegmentDims, segment: &[f32]) -> f32 {
-        segment_cost(Task::Screwdriver, mode, dims, segment)
+        segment_cost(Task::Screwdriver, mode, dims, segment, CardGoals::default())
     }
 
     fn progress(&self, state: &[f32]) -> f32 {
@@ -342,22 +421,26 @@ impl TaskObjective for ScrewdriverObjective {
 }
 
 /// The card's costs: progress is the card's `y`, `φ(ȳ) = (ȳ − goal)²`, the goal is reached
-/// when `ȳ ≤ goal + tolerance` ([`CARD_GOAL_TOLERANCE_Y`] by default).
+/// when `ȳ ≤ goal + tolerance` (the tolerance and the pushes' goals set by
+/// [`CardObjective::goals`]).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct CardObjective {
     /// The search goal `o_G` in `y` (metres), [`CARD_GOAL_Y`] in the paper.
     pub goal_y: f32,
-    /// The goal test passes within this much of `goal_y` (metres, ≥ 0).
-    pub tolerance_y: f32,
+    /// Where the pushes aim (`J`) and the goal test's tolerance
+    /// ([`CardGoals::tolerance_y`]).
+    pub goals: CardGoals,
 }
 
 impl CardObjective {
-    /// The objective for goal `goal_y` with the default tolerance [`CARD_GOAL_TOLERANCE_Y`].
+    /// The objective for goal `goal_y` with the default goals ([`CardGoals::Capped`]).
     pub const fn new(goal_y: f32) -> Self {
-        Self {
-            goal_y,
-            tolerance_y: CARD_GOAL_TOLERANCE_Y,
-        }
+        Self::with_goals(goal_y, CardGoals::Capped)
+    }
+
+    /// The objective for goal `goal_y` with `goals`.
+    pub const fn with_goals(goal_y: f32, goals: CardGoals) -> Self {
+        Self { goal_y, goals }
     }
 }
 
@@ -373,7 +456,7 @@ impl TaskObjective for CardObjective {
     }
 
     fn segment_cost(&self, mode: ContactMode, dims: &SegmentDims, segment: &[f32]) -> f32 {
-        segment_cost(Task::Card, mode, dims, segment)
+        segment_cost(Task::Card, mode, dims, segment, self.goals)
     }
 
     fn progress(&self, state: &[f32]) -> f32 {
@@ -389,7 +472,7 @@ impl TaskObjective for CardObjective {
     }
 
     fn goal_reached(&self, expected_progress: f32) -> bool {
-        expected_progress <= self.goal_y + self.tolerance_y
+        expected_progress <= self.goal_y + self.goals.tolerance_y()
     }
 }
 
@@ -404,13 +487,13 @@ pub enum Objective {
 
 impl Objective {
     /// The objective of `task` for an absolute search goal (screwdriver: yaw in radians; card:
-    /// `y` in metres) from the raw `start` state. `None` when the goal is not finite or the
-    /// start too short.
+    /// `y` in metres, with the card's `goals`) from the raw `start` state. `None` when the
+    /// goal is not finite or the start too short.
     ///
     /// The screwdriver's start yaw is `atan2(sin, cos)`, known only up to whole turns; it is
     /// taken on the branch within π of the goal (`reference_yaw = goal + wrap(yaw − goal)`),
     /// so a host that tracks the unwrapped yaw over many turns can send its goal as is.
-    pub fn for_goal(task: Task, start: &[f32], goal: f32) -> Option<Self> {
+    pub fn for_goal(task: Task, start: &[f32], goal: f32, card: CardGoals) -> Option<Self> {
         if !goal.is_finite() {
             return None;
         }
@@ -424,7 +507,7 @@ impl Objective {
             }
             Task::Card => {
                 start.get(Task::Card.layout().object() + 1)?;
-                Some(Self::Card(CardObjective::new(goal)))
+                Some(Self::Card(CardObjective::with_goals(goal, card)))
             }
         }
     }
@@ -596,15 +679,15 @@ mod tests {
             0.0
         );
         assert_eq!(
-            mode_goal(TaskMode::CardBoth, [0.01f64, 0.005, 0.1]),
+            mode_goal(TaskMode::CardBoth, [0.01f64, 0.005, 0.1], CardGoals::Capped),
             [0.0, 0.005 - 0.02, 0.0]
         );
         assert_eq!(
-            mode_goal(TaskMode::Turn, [0.1f64, 0.2, 1.0]),
+            mode_goal(TaskMode::Turn, [0.1f64, 0.2, 1.0], CardGoals::Capped),
             [0.0, 0.0, 1.0 - core::f64::consts::PI / 6.0]
         );
         assert_eq!(
-            mode_goal(TaskMode::CardRegrasp, [0.1f32, 0.2, 0.3]),
+            mode_goal(TaskMode::CardRegrasp, [0.1f32, 0.2, 0.3], CardGoals::Capped),
             [0.1, 0.2, 0.3]
         );
         assert_eq!(
@@ -618,23 +701,68 @@ mod tests {
 
     #[test]
     fn card_pushes_aim_at_most_at_the_task_goal() {
-        let goal_y = |y: f64| mode_goal(TaskMode::CardBoth, [0.003f64, y, 0.05])[1];
+        let goal_y =
+            |y: f64| mode_goal(TaskMode::CardBoth, [0.003f64, y, 0.05], CardGoals::Capped)[1];
         // A full push while more than 2 cm remain.
         assert!((goal_y(-0.01) - -0.03).abs() < 1e-12);
         assert!((goal_y(-0.04) - -0.06).abs() < 1e-12);
         // Less than 2 cm left: the push stops at o_G.
         assert_eq!(goal_y(-0.054), -0.06);
         assert_eq!(
-            mode_goal(TaskMode::CardIndex, [0.0f32, -0.05, 0.0])[1],
+            mode_goal(TaskMode::CardIndex, [0.0f32, -0.05, 0.0], CardGoals::Capped)[1],
             CARD_GOAL_Y
         );
         // Past o_G: hold, never pull back.
         assert_eq!(goal_y(-0.07), -0.07);
         // Regrasps still hold wherever the card is.
         assert_eq!(
-            mode_goal(TaskMode::CardRegrasp, [0.0f64, -0.059, 0.0]),
+            mode_goal(
+                TaskMode::CardRegrasp,
+                [0.0f64, -0.059, 0.0],
+                CardGoals::Capped
+            ),
             [0.0, -0.059, 0.0]
         );
+    }
+
+    #[test]
+    fn the_papers_card_pushes_are_flat_2_cm() {
+        let goal_y =
+            |y: f64| mode_goal(TaskMode::CardMiddle, [0.003f64, y, 0.05], CardGoals::Paper)[1];
+        for y in [-0.01, -0.054, -0.07] {
+            assert!((goal_y(y) - (y - 0.02)).abs() < 1e-12, "{y}");
+        }
+        assert_eq!(
+            mode_goal(
+                TaskMode::CardRegrasp,
+                [0.0f64, -0.059, 0.0],
+                CardGoals::Paper
+            ),
+            [0.0, -0.059, 0.0]
+        );
+        // The search's J sees the same goal: from −5.4 cm, a segment that jumps 2 cm and
+        // stays there meets the paper's goal (−7.4 cm) and overshoots ours (−6 cm); one that
+        // stays where it is falls short of both, of the paper's by more.
+        let dims = Task::Card.dims();
+        let segment = |end: f32| {
+            let mut seg = [0.0f32; 9 * 29];
+            for t in 0..9 {
+                seg[t * 29 + 9] = if t == 0 { -0.054 } else { end };
+                seg[t * 29 + 10] = 1.0;
+            }
+            seg
+        };
+        let paper = CardObjective::with_goals(CARD_GOAL_Y, CardGoals::Paper);
+        let ours = CardObjective::new(CARD_GOAL_Y);
+        let both = mode(Task::Card, "both");
+        let cost = |o: &CardObjective, end| o.segment_cost(both, &dims, &segment(end));
+        assert!(cost(&paper, -0.074) < cost(&ours, -0.074));
+        assert!(cost(&paper, -0.054) > cost(&ours, -0.054));
+        assert_eq!("paper".parse::<CardGoals>(), Ok(CardGoals::Paper));
+        assert_eq!(CardGoals::Capped.name(), "capped");
+        let e = "flat".parse::<CardGoals>().unwrap_err();
+        assert_eq!((e.what(), e.given()), ("card goals", "flat"));
+        assert_eq!(e.allowed(), &CardGoals::NAMES[..]);
     }
 
     #[test]
@@ -664,10 +792,7 @@ mod tests {
         // Within the tolerance of the goal, and not beyond it.
         assert!(card.goal_reached(CARD_GOAL_Y + 0.9 * CARD_GOAL_TOLERANCE_Y));
         assert!(!card.goal_reached(CARD_GOAL_Y + 1.1 * CARD_GOAL_TOLERANCE_Y));
-        let exact = CardObjective {
-            tolerance_y: 0.0,
-            ..card
-        };
+        let exact = CardObjective::with_goals(CARD_GOAL_Y, CardGoals::Paper);
         assert!(exact.goal_reached(CARD_GOAL_Y) && !exact.goal_reached(CARD_GOAL_Y + 1e-4));
         let _ = ModeId(0);
     }

@@ -12,10 +12,10 @@
 use core::fmt;
 
 use dips_wire::{
-    ApproximateReason as WireApproximate, CostToCome as WireCostToCome, MAX_PLAN_MODES,
-    PlanCapacity, PlanReply, PlanRequest, PlanStats, PlanStatus, PriorTable, RequestField,
-    SamplerMethod, SamplerSettings, SearchSettings, SearchVariant as WireVariant, SettingsField,
-    Task as WireTask, WireError,
+    ApproximateReason as WireApproximate, CardGoals as WireCardGoals, CostToCome as WireCostToCome,
+    MAX_PLAN_MODES, PlanCapacity, PlanReply, PlanRequest, PlanStats, PlanStatus, PriorTable,
+    RequestField, SamplerMethod, SamplerSettings, SearchSettings, SearchVariant as WireVariant,
+    SettingsField, Task as WireTask, WireError,
 };
 
 use crate::budget::Clock;
@@ -28,7 +28,7 @@ use crate::search::{
     SearchReport, SearchStats, SearchStatus, SearchVariant, SegmentSampler, SegmentScorer,
 };
 use crate::session::{PlanSpec, SpecError, plan_with_adapters};
-use crate::task::Objective;
+use crate::task::{CardGoals, Objective};
 
 const _: () = assert!(MAX_PLAN_LEN == MAX_PLAN_MODES, "plan lengths must agree");
 const _: () = assert!(
@@ -50,6 +50,24 @@ impl From<Task> for WireTask {
         match t {
             Task::Screwdriver => WireTask::Screwdriver,
             Task::Card => WireTask::Card,
+        }
+    }
+}
+
+impl From<WireCardGoals> for CardGoals {
+    fn from(c: WireCardGoals) -> Self {
+        match c {
+            WireCardGoals::Paper => CardGoals::Paper,
+            WireCardGoals::Capped => CardGoals::Capped,
+        }
+    }
+}
+
+impl From<CardGoals> for WireCardGoals {
+    fn from(c: CardGoals) -> Self {
+        match c {
+            CardGoals::Paper => WireCardGoals::Paper,
+            CardGoals::Capped => WireCardGoals::Capped,
         }
     }
 }
@@ -328,8 +346,8 @@ impl PlanInputs {
         if start.len() != dims.state_dim || start.iter().any(|v| !v.is_finite()) {
             return Err(RequestField::StartState);
         }
-        let objective =
-            Objective::for_goal(task, &start, request.goal).ok_or(RequestField::Goal)?;
+        let objective = Objective::for_goal(task, &start, request.goal, request.card_goals.into())
+            .ok_or(RequestField::Goal)?;
         let config = SearchConfig::from(request.settings);
         config.validate().map_err(|_| RequestField::Settings)?;
         let executed = match request.previous_mode {
@@ -397,6 +415,7 @@ impl PlanSpec {
             goal: self.goal(),
             settings: self.search.into(),
             previous_mode: self.executed.map(mode_to_wire),
+            card_goals: self.card_goals().into(),
         }
     }
 }

@@ -51,6 +51,7 @@ fn planning_through_the_model_adapters_does_not_allocate() {
             ..SearchSettings::default()
         },
         previous_mode: Some(1),
+        card_goals: Default::default(),
     };
 
     // Building the adapters only splits the caller's buffers.

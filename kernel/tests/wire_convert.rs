@@ -191,6 +191,7 @@ fn request(task: dips_wire::Task, start: &[f32], goal: f32) -> PlanRequest {
         goal,
         settings: SearchSettings::default(),
         previous_mode: None,
+        card_goals: Default::default(),
     }
 }
 

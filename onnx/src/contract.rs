@@ -18,6 +18,28 @@ pub const CONTRACT_VERSION: u32 = 1;
 /// before it existed have none ([`psi_negatives`]).
 pub const PSI_NEGATIVES_KEY: &str = "dips.psi_negatives";
 
+/// Denoiser metadata of a card model: where the pushes of its training demos aimed
+/// (`paper` or `capped`, `dips_kernel::task::CardGoals`). The planner plans and executes with
+/// the same goals. Card models written before it existed have none and were trained on ours,
+/// `capped` ([`card_goals`]).
+pub const CARD_GOALS_KEY: &str = "dips.card_goals";
+
+/// The card goals a model was trained for ([`CARD_GOALS_KEY`]), `None` when the model does not
+/// say; an error when it names none of them.
+pub fn card_goals(proto: &pb::ModelProto) -> Result<Option<dips_kernel::task::CardGoals>> {
+    let Some(v) = proto
+        .metadata_props
+        .iter()
+        .find(|p| p.key == CARD_GOALS_KEY)
+    else {
+        return Ok(None);
+    };
+    v.value
+        .parse()
+        .map(Some)
+        .map_err(|e| contract_err(format!("{CARD_GOALS_KEY}: {e}")))
+}
+
 /// How [`PSI_NEGATIVES_KEY`] names the samples of `method`: the sampler's name as `--sampler`
 /// spells it, with `+anchor` when they were anchored at their starts as the planner anchors
 /// them (`dips_kernel::adapters::StartAnchor` other than `NONE`).

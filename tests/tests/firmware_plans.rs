@@ -70,6 +70,7 @@ fn request(seed: u64) -> PlanRequest {
             ..SearchSettings::default()
         },
         previous_mode: None,
+        card_goals: Default::default(),
     }
 }
 

@@ -82,6 +82,7 @@ fn plan(kind: EngineKind, model_task: Task, task: Task) -> SearchReport {
         dir: std::path::PathBuf::new(),
         policy: None,
         psi_negatives: None,
+        card_goals: None,
     };
     let prior = MarkovPrior::uniform(task.mode_count()).unwrap();
     let goal = match task {
@@ -174,6 +175,7 @@ fn a_wire_request_is_planned_with_the_kernel_engine() {
         goal: -1.0,
         settings: SearchSettings::from(config()),
         previous_mode: Some(1),
+        card_goals: Default::default(),
     };
     for v in start(task) {
         request.start_state.push(v).unwrap();

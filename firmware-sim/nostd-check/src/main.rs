@@ -325,6 +325,7 @@ fn request() -> PlanRequest {
             ..SearchConfig::card()
         }),
         previous_mode: None,
+        card_goals: Default::default(),
     };
     // Index and middle joints, the card at the origin with θ = 0.
     for v in [

@@ -63,7 +63,7 @@ pub fn run(args: CsvtoBenchArgs) -> anyhow::Result<()> {
         task: SceneKind::Screwdriver,
         mode: Mode::Turn,
         horizon: settings.horizon,
-        goal: mode_goal(Mode::Turn, &start),
+        goal: mode_goal(Mode::Turn, &start, Default::default()),
         start,
     };
     let problem = AllegroProblem::new(&hand, &spec)?;

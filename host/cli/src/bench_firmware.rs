@@ -97,6 +97,7 @@ fn setup(args: &FirmwareBenchArgs, task: Task) -> anyhow::Result<Setup> {
             goal,
             settings: config.into(),
             previous_mode: None,
+            card_goals: Default::default(),
         },
         sampler: ToKernel::SetSampler(sampler),
     })

@@ -23,6 +23,9 @@ pub struct DatagenArgs {
     /// Task: screwdriver or card.
     #[arg(long, value_parser = named::<SceneKind>())]
     pub task: Option<SceneKind>,
+    /// The card's goals the demos' pushes aim for.
+    #[command(flatten)]
+    pub card_goals: crate::search_args::CardGoalsArgs,
     /// Demos in the whole dataset (the paper's: screwdriver 240, card 480).
     #[arg(long)]
     pub demos: Option<usize>,
@@ -136,6 +139,7 @@ pub fn run(args: DatagenArgs) -> anyhow::Result<()> {
         settings.jobs = j;
     }
     settings.first_seed = args.first_seed;
+    settings.exec.card_goals = args.card_goals.given(task.task())?.unwrap_or_default();
     settings.sequences = dips_host::execute::SequenceSource::from_name(&args.sequences)
         .with_context(|| {
             format!(

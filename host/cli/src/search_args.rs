@@ -14,6 +14,7 @@ use dips_host::scenes::SceneKind;
 use dips_kernel::diffusion::SamplerConfig;
 use dips_kernel::mode::Task;
 use dips_kernel::search::{CostToCome, SearchOverrides};
+use dips_kernel::task::CardGoals;
 
 /// A domain value that the command line reads with its own `FromStr` (whose error names the
 /// value and the allowed ones) and lists in `--help` by its names.
@@ -42,6 +43,39 @@ impl Named for CostToCome {
         "`g` = the sum of the expected segment costs along the sequence (the paper's equation)",
         "`g` = the expected cost of the last segment only (the authors' code)",
     ];
+}
+
+impl Named for CardGoals {
+    const NAMES: &'static [&'static str] = &CardGoals::NAMES;
+    const HELP: &'static [&'static str] = &[
+        "Every push aims 2 cm on; the goal test is ȳ ≤ o_G (the paper's card)",
+        "Pushes stop at o_G; the goal test passes within 1 mm of it (ours)",
+    ];
+}
+
+/// `--card-goals` of `dips episode` and `dips eval`: where the card's pushes aim and when its
+/// search goal is reached. Given or not, it must agree with the models' (`dips.card_goals`);
+/// left out, the models' is used (ours without models).
+#[derive(Debug, Clone, Copy, Default, Args)]
+pub struct CardGoalsArgs {
+    /// The card's goals: `paper` (every push aims 2 cm on, goal test ȳ ≤ o_G) or `capped`
+    /// (ours: pushes stop at o_G, goal test within 1 mm). Default: the models' own
+    /// (`dips.card_goals`), else `capped`. The card only.
+    #[arg(long, value_parser = named::<CardGoals>())]
+    pub card_goals: Option<CardGoals>,
+}
+
+impl CardGoalsArgs {
+    /// The goals given, checked against the task: an error for the screwdriver, whose modes
+    /// have no pushes.
+    pub fn given(&self, task: Task) -> anyhow::Result<Option<CardGoals>> {
+        match (self.card_goals, task) {
+            (Some(g), Task::Screwdriver) => anyhow::bail!(
+                "--card-goals {g}: the screwdriver has no pushes; --card-goals is for --task card"
+            ),
+            (given, _) => Ok(given),
+        }
+    }
 }
 
 impl Named for SearchDepth {

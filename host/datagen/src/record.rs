@@ -163,7 +163,7 @@ pub fn record_demo(
         sequences.name().to_string(),
     );
     metadata.insert(
-        "exec_settings".to_string(),
+        dips_dataset::EXEC_SETTINGS_KEY.to_string(),
         serde_json::to_string(settings).unwrap_or_default(),
     );
     let record = DemoRecord {

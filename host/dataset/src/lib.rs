@@ -25,6 +25,7 @@ use std::collections::{BTreeMap, HashMap};
 use std::path::{Path, PathBuf};
 
 use dips_kernel::mode::{SegmentDims, Task};
+use dips_kernel::task::CardGoals;
 use safetensors::{Dtype, SafeTensors, tensor::TensorView};
 
 /// The format version this crate reads and writes (`dips.dataset`).
@@ -116,6 +117,10 @@ pub const SEQUENCES_KEY: &str = "sequences";
 /// metric, and per mode `mode`, `start_state`, `end_state`, `valid`).
 pub const OUTCOME_KEY: &str = "outcome";
 
+/// The metadata key of the execution settings `dips datagen` ran a demo with (JSON; its
+/// `card_goals`, absent for ours, says where the card's pushes aimed).
+pub const EXEC_SETTINGS_KEY: &str = "exec_settings";
+
 /// The sequence sources `dips datagen --sequences` knows, the default first.
 pub const SEQUENCE_SOURCES: [&str; 3] = ["pattern", "markov", "turn-runs"];
 
@@ -126,6 +131,21 @@ impl DemoRecord {
         self.metadata
             .get(SEQUENCES_KEY)
             .map_or(SEQUENCE_SOURCES[0], String::as_str)
+    }
+
+    /// Where the demo's card pushes aimed: the `card_goals` of its execution settings
+    /// ([`EXEC_SETTINGS_KEY`]); ours ([`CardGoals::Capped`]) when the settings do not name
+    /// them (every demo made before they could differ). `None` when the settings name
+    /// something that is not a card-goals name.
+    pub fn card_goals(&self) -> Option<CardGoals> {
+        let Some(text) = self.metadata.get(EXEC_SETTINGS_KEY) else {
+            return Some(CardGoals::default());
+        };
+        let exec: serde_json::Value = serde_json::from_str(text).ok()?;
+        match exec.get("card_goals") {
+            None => Some(CardGoals::default()),
+            Some(v) => v.as_str()?.parse().ok(),
+        }
     }
 
     /// Number of trajectories `N`.
@@ -528,6 +548,40 @@ pub struct Dataset {
     pub demos: Vec<DemoRecord>,
     /// The file each demo came from (same order), empty for an in-memory dataset.
     pub files: Vec<PathBuf>,
+}
+
+impl Dataset {
+    /// Where every demo's card pushes aimed ([`DemoRecord::card_goals`]); an error naming two
+    /// demos that differ, or one whose settings name no card goals, since models trained on a
+    /// mix would plan neither.
+    pub fn card_goals(&self) -> Result<CardGoals> {
+        let mut first: Option<(u64, CardGoals)> = None;
+        for (i, d) in self.demos.iter().enumerate() {
+            let path = self.files.get(i).cloned().unwrap_or_default();
+            let goals = d.card_goals().ok_or_else(|| DatasetError::Format {
+                path: path.clone(),
+                reason: format!(
+                    "{EXEC_SETTINGS_KEY} names no card goals (expected {})",
+                    CardGoals::NAMES.join(" or ")
+                ),
+            })?;
+            match first {
+                None => first = Some((d.seed, goals)),
+                Some((seed, g)) if g != goals => {
+                    return Err(DatasetError::Format {
+                        path,
+                        reason: format!(
+                            "demo {} was made with card goals {goals}, demo {seed} with {g}; \
+                             a dataset holds one kind (dips datagen --card-goals)",
+                            d.seed
+                        ),
+                    });
+                }
+                Some(_) => {}
+            }
+        }
+        Ok(first.map_or(CardGoals::default(), |(_, g)| g))
+    }
 }
 
 /// Demo indices of a train/held-out split.

@@ -175,7 +175,9 @@ impl RemotePlanner {
     /// The plan request of `spec` ([`PlanSpec::to_request`]); an error when the wire cannot
     /// say it (a screwdriver start yaw unwrapped beyond what the goal implies).
     fn request_of(spec: &PlanSpec) -> anyhow::Result<PlanRequest> {
-        if Objective::for_goal(spec.task, &spec.start, spec.goal()) != Some(spec.objective) {
+        if Objective::for_goal(spec.task, &spec.start, spec.goal(), spec.card_goals())
+            != Some(spec.objective)
+        {
             bail!(
                 "this call's start yaw is unwrapped more than π from its goal; the wire's \
                  PlanRequest carries the goal only (plan it in-process)"

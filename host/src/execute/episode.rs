@@ -6,6 +6,7 @@ use std::path::Path;
 
 use dips_kernel::rng::KernelRng;
 use dips_kernel::search::ParticleDiagnostics;
+use dips_kernel::task::CardGoals;
 use serde::Serialize;
 
 use super::mode_run::{
@@ -262,6 +263,11 @@ pub struct EpisodeResult {
     /// Every planning call of a searching method, in order (empty for fixed sequences).
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub plans: Vec<PlanRecord>,
+    /// The card's goals the episode's pushes (and its planner) aimed for
+    /// ([`ExecSettings::card_goals`]); left out when ours, the default, as in files written
+    /// before it was recorded.
+    #[serde(skip_serializing_if = "CardGoals::is_capped")]
+    pub card_goals: CardGoals,
 }
 
 /// One planning call of an online method (`result.json`'s `plans`).
@@ -449,6 +455,7 @@ pub fn run_episode_observed<H: Hand + ?Sized>(
         task, method, seed, &start, &end, runs, planning_s, step_s, valid,
     );
     result.hand = hand.name();
+    result.card_goals = settings.card_goals;
     Ok(result)
 }
 
@@ -495,6 +502,7 @@ impl EpisodeResult {
             csvto_step_s,
             mode_runs: runs,
             plans: Vec::new(),
+            card_goals: CardGoals::default(),
         }
     }
 }

@@ -3,6 +3,7 @@
 use std::time::Instant;
 
 use dips_kernel::rng::KernelRng;
+use dips_kernel::task::CardGoals;
 use serde::Serialize;
 
 use super::settings::ExecSettings;
@@ -14,12 +15,13 @@ use crate::problems::{AllegroProblem, Mode, ProblemError, ProblemSpec};
 use crate::scenes::SceneKind;
 use crate::scenes::{card, screwdriver};
 
-/// The object goal of `mode` from the raw state `start` (`[q, o]`): the kernel's
-/// [`dips_kernel::task::mode_goal`], the one definition the search's `J` uses too (turn to
-/// `yaw − π/6` with roll and pitch at 0; card moves to `(0, y − 0.02, 0)`; regrasps hold).
-pub fn mode_goal(mode: Mode, start: &[f64]) -> [f64; 3] {
+/// The object goal of `mode` from the raw state `start` (`[q, o]`) with the card's `card`
+/// goals: the kernel's [`dips_kernel::task::mode_goal`], the one definition the search's `J`
+/// uses too (turn to `yaw − π/6` with roll and pitch at 0; card moves to `(0, y − 0.02, 0)`,
+/// with [`CardGoals::Capped`] never past the task goal; regrasps hold).
+pub fn mode_goal(mode: Mode, start: &[f64], card: CardGoals) -> [f64; 3] {
     let o = &start[start.len() - 3..];
-    dips_kernel::task::mode_goal(mode, [o[0], o[1], o[2]])
+    dips_kernel::task::mode_goal(mode, [o[0], o[1], o[2]], card)
 }
 
 /// Command the hand to its measured joints plus `dq`, the task fingers' joint deltas in
@@ -240,7 +242,7 @@ pub fn run_mode_observed<H: Hand + ?Sized>(
     settings.validate()?;
     let task: SceneKind = hand.scene();
     let start_state = hand_state(hand);
-    let goal = mode_goal(mode, &start_state);
+    let goal = mode_goal(mode, &start_state, settings.card_goals);
     let h = settings.horizon;
     let mut spec = ProblemSpec {
         task,

@@ -2,6 +2,7 @@
 
 use crate::csvto::{CsvtoError, CsvtoSettings};
 use crate::scenes::SceneKind;
+use dips_kernel::task::CardGoals;
 
 /// Largest constraint violation of a converged warm-up. Screwdriver warm-ups end below it
 /// (all but one in the 10-seed episodes). Every card warm-up ends at 0.44–0.66 (the first
@@ -33,6 +34,11 @@ pub struct ExecSettings {
     /// (or, for given initial particles, continued for another `warmup_iters`). The attempt
     /// with the lowest penalty is kept.
     pub warmup_retries: usize,
+    /// The card's goals: where each push aims ([`dips_kernel::task::mode_goal`]); the same
+    /// setting sets the planner's `J` and goal test. Ours ([`CardGoals::Capped`]) by default,
+    /// and then left out of settings files, so those written before it existed still match.
+    #[serde(skip_serializing_if = "CardGoals::is_capped")]
+    pub card_goals: CardGoals,
 }
 
 impl ExecSettings {
@@ -73,6 +79,7 @@ impl ExecSettings {
                 horizon: 12,
                 warmup_tolerance: WARMUP_TOLERANCE,
                 warmup_retries: WARMUP_RETRIES,
+                card_goals: CardGoals::default(),
             },
             SceneKind::Card => Self {
                 csvto: CsvtoSettings {
@@ -86,6 +93,7 @@ impl ExecSettings {
                 horizon: 8,
                 warmup_tolerance: WARMUP_TOLERANCE,
                 warmup_retries: WARMUP_RETRIES,
+                card_goals: CardGoals::default(),
             },
         }
     }

@@ -37,8 +37,9 @@ pub use framing::{
 };
 pub use messages::{Frame, FromKernel, Hello, HelloAck, Message, ToKernel};
 pub use plan::{
-    ApproximateReason, CostToCome, MAX_PLAN_MODES, MAX_STATE_DIM, PlanCapacity, PlanReply,
-    PlanRequest, PlanStats, PlanStatus, SearchSettings, SearchVariant, SettingsField, Task,
+    ApproximateReason, CardGoals, CostToCome, MAX_PLAN_MODES, MAX_STATE_DIM, PlanCapacity,
+    PlanReply, PlanRequest, PlanStats, PlanStatus, SearchSettings, SearchVariant, SettingsField,
+    Task,
 };
 pub use schema::{PROTOCOL_VERSION, SCHEMA_KEY};
 pub use status::{FrameCounts, KernelStatus, LastPlan, MemoryUse, ModelIdentity};

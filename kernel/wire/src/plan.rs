@@ -28,6 +28,17 @@ pub enum CostToCome {
     LastSegment,
 }
 
+/// The card's goals: where each push aims and when the goal test passes (the kernel's
+/// `task::CardGoals`; no effect on the screwdriver).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize, MaxSize)]
+pub enum CardGoals {
+    /// The paper's: every push aims 2 cm on, the goal test is `ȳ ≤ o_G`.
+    Paper,
+    /// Ours: pushes stop at `o_G`, the goal test passes within 1 mm of it.
+    #[default]
+    Capped,
+}
+
 /// Which search the kernel runs.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, MaxSize)]
 pub enum SearchVariant {
@@ -104,6 +115,8 @@ pub struct PlanRequest {
     pub settings: SearchSettings,
     /// When replanning, the mode just executed (index into the task's mode table).
     pub previous_mode: Option<u8>,
+    /// The card's goals (ignored for the screwdriver).
+    pub card_goals: CardGoals,
 }
 
 impl MaxSize for PlanRequest {
@@ -111,7 +124,8 @@ impl MaxSize for PlanRequest {
         + vec_max_size::<f32, MAX_STATE_DIM>()
         + f32::POSTCARD_MAX_SIZE
         + SearchSettings::POSTCARD_MAX_SIZE
-        + Option::<u8>::POSTCARD_MAX_SIZE;
+        + Option::<u8>::POSTCARD_MAX_SIZE
+        + CardGoals::POSTCARD_MAX_SIZE;
 }
 
 /// Why a plan is only approximate.

@@ -7,7 +7,7 @@
 //! and whoever updates them must describe the change in [`SCHEMA`], which changes the key.
 
 /// Wire protocol version; bump it for any change that is not an appended variant.
-pub const PROTOCOL_VERSION: u16 = 1;
+pub const PROTOCOL_VERSION: u16 = 2;
 
 /// The message layout this crate encodes, as text (field order is encoding order).
 pub const SCHEMA: &str = "\
@@ -17,7 +17,8 @@ FromKernel{0:HelloAck,1:PlanReply,2:ModelAck,3:ModelLoaded,4:Error(WireError),5:
 Hello{protocol_version:u16,schema_key:u64};\
 HelloAck{protocol_version:u16,schema_key:u64,max_frame_len_bytes:u32,model_chunk_len_bytes:u32};\
 Task{0:Screwdriver,1:Card};\
-PlanRequest{task:Task,start_state:Vec<f32,16>,goal:f32,settings:SearchSettings,previous_mode:Option<u8>};\
+PlanRequest{task:Task,start_state:Vec<f32,16>,goal:f32,settings:SearchSettings,previous_mode:Option<u8>,card_goals:CardGoals};\
+CardGoals{0:Paper,1:Capped};\
 SearchSettings{k:u16,max_depth:u8,gamma:f32,alpha:f32,beta:f32,p_min:f32,node_budget:u32,time_budget_ms:u32,seed:u64,cost_to_come:CostToCome,variant:SearchVariant};\
 CostToCome{0:Cumulative,1:LastSegment};SearchVariant{0:Particles,1:MaxLikelihood};\
 PlanReply{modes:Vec<u8,16>,terminal_state:Vec<f32,16>,status:PlanStatus,stats:PlanStats};\

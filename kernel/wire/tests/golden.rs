@@ -31,6 +31,7 @@ fn canonical_to_kernel() -> std::vec::Vec<ToKernel> {
                 ..SearchSettings::default()
             },
             previous_mode: Some(2),
+            card_goals: Default::default(),
         }),
         ToKernel::ModelBegin(ModelBegin {
             role: ModelRole::Discriminator,
@@ -200,7 +201,7 @@ fn canonical_errors() -> std::vec::Vec<WireError> {
 
 const GOLDEN_TO_KERNEL: [&str; 9] = [
     "02070b01ef9bafcdf8acd1910100",
-    "03070102040101023f010380bf01010101010d803f920a86bf10076666663f04401c46010d7a44cdcccc3d904ee0a7122a0103010200",
+    "03070102040101023f010380bf01010101010d803f920a86bf10076666663f04401c46010d7a44cdcccc3d904ee0a7122a010401020100",
     "0b070201e807a6f2d0df0c00",
     "060703800404040102ff00",
     "03070400",
@@ -233,12 +234,12 @@ const GOLDEN_ERRORS: [&str; 13] = [
     "0507040a0500",
     "0407040b0502ac020200",
 ];
-const GOLDEN_SCHEMA_KEY: u64 = 0x6030_40bb_89db_c0cc;
+const GOLDEN_SCHEMA_KEY: u64 = 0x9990_1035_9b24_299a;
 
 #[test]
 fn schema_key_is_pinned() {
     assert_eq!(SCHEMA_KEY, GOLDEN_SCHEMA_KEY, "actual {SCHEMA_KEY:#018x}");
-    assert_eq!(PROTOCOL_VERSION, 1);
+    assert_eq!(PROTOCOL_VERSION, 2);
 }
 
 #[test]

@@ -40,6 +40,7 @@ proptest! {
             goal: f32::from_bits(bits.first().copied().unwrap_or(0)),
             settings: SearchSettings::default(),
             previous_mode: None,
+            card_goals: Default::default(),
         });
         let bytes = encode(1, msg);
         let frames = deframe::<ToKernel>(&bytes, &[3]);
@@ -88,6 +89,7 @@ fn max_sizes_are_bounds() {
             ..SearchSettings::default()
         },
         previous_mode: Some(u8::MAX),
+        card_goals: Default::default(),
     });
     for msg in [big_chunk, big_request] {
         let mut buf = [0u8; 4096];

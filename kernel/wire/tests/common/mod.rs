@@ -47,9 +47,10 @@ prop_compose! {
 prop_compose! {
     pub fn plan_request()(
         task in task(), start_state in f32_vec::<MAX_STATE_DIM>(), goal in finite_f32(),
-        settings in settings(), previous_mode in any::<Option<u8>>(),
+        settings in settings(), previous_mode in any::<Option<u8>>(), paper in any::<bool>(),
     ) -> PlanRequest {
-        PlanRequest { task, start_state, goal, settings, previous_mode }
+        let card_goals = if paper { CardGoals::Paper } else { CardGoals::Capped };
+        PlanRequest { task, start_state, goal, settings, previous_mode, card_goals }
     }
 }
 
