@@ -16,6 +16,9 @@
 # data do not depend on it). SEED=0 writes the shipped models, onnx/models/<task>/; any other
 # seed writes onnx/models/<task>-seed<SEED>/ from the same data and settings, to measure how
 # much a result depends on the training run (docs/training.md, "Training seeds").
+# CARD_GOALS (default capped, ours): `paper` makes the card's demos with the paper's goals
+# (`dips datagen --card-goals paper`: every push aims 2 cm on) into WORK/data/card-paper and
+# writes onnx/models/card-paper[-seed<SEED>]/ (docs/training.md, "The paper's card").
 set -euo pipefail
 cd "$(dirname "$0")/.."
 WORK=${WORK:-target/models-work}
@@ -23,17 +26,30 @@ SEED=${SEED:-0}
 read -r -a TASK_LIST <<<"${TASKS:-screwdriver card}"
 declare -A DEMOS=([screwdriver]=${DEMOS_SCREWDRIVER:-40} [card]=${DEMOS_CARD:-128})
 mkdir -p "$WORK/logs"
+CARD_GOALS=${CARD_GOALS:-capped}
+case "$CARD_GOALS" in paper | capped) ;; *)
+  echo "CARD_GOALS=$CARD_GOALS: expected paper or capped" >&2
+  exit 2
+  ;;
+esac
+# A task's data and model name: the card with the paper's goals is card-paper.
+name() { [[ $1 == card && $CARD_GOALS == paper ]] && echo "card-paper" || echo "$1"; }
 # Where a task's models of this seed are trained and where they are shipped.
 suffix() { [[ $SEED == 0 ]] && echo "" || echo "-seed$SEED"; }
-work_models() { echo "$WORK/models/$1$(suffix)"; }
-shipped() { echo "onnx/models/$1$(suffix)"; }
+work_models() { echo "$WORK/models/$(name "$1")$(suffix)"; }
+shipped() { echo "onnx/models/$(name "$1")$(suffix)"; }
+data() { echo "$WORK/data/$(name "$1")"; }
+# The shipped default models' folder holds their settings; every other folder gets a copy.
+own_settings() { [[ $(shipped "$1") == "onnx/models/$1" ]]; }
 
 cargo build --release -p dips-cli
 DIPS=target/release/dips
 
 for task in "${TASK_LIST[@]}"; do
   echo "== datagen $task (${DEMOS[$task]} demos)"
-  "$DIPS" datagen --task "$task" --demos "${DEMOS[$task]}" --out "$WORK/data/$task"
+  goals=()
+  [[ $task == card ]] && goals=(--card-goals "$CARD_GOALS")
+  "$DIPS" datagen --task "$task" "${goals[@]}" --demos "${DEMOS[$task]}" --out "$(data "$task")"
 done
 MARKOV=${MARKOV_SCREWDRIVER:-40}
 if [ "$MARKOV" -gt 0 ] && [[ " ${TASK_LIST[*]} " == *" screwdriver "* ]]; then
@@ -44,9 +60,9 @@ fi
 
 pids=()
 for task in "${TASK_LIST[@]}"; do
-  log="$WORK/logs/train-$task$(suffix).log"
-  echo "== train $task, seed $SEED (log: $log)"
-  "$DIPS" train --task "$task" --data "$WORK/data/$task" --out "$(work_models "$task")" \
+  log="$WORK/logs/train-$(name "$task")$(suffix).log"
+  echo "== train $(name "$task"), seed $SEED (log: $log)"
+  "$DIPS" train --task "$task" --data "$(data "$task")" --out "$(work_models "$task")" \
     --settings "onnx/models/$task/settings.json" --seed "$SEED" --quiet > "$log" 2>&1 &
   pids+=($!)
 done
@@ -54,30 +70,31 @@ for p in "${pids[@]}"; do wait "$p"; done
 
 pids=()
 for task in "${TASK_LIST[@]}"; do
-  log="$WORK/logs/policy-$task$(suffix).log"
-  echo "== train the diffusion-policy baseline for $task, seed $SEED (log: $log)"
-  "$DIPS" train --policy --task "$task" --data "$WORK/data/$task" \
-    --out "$WORK/models/$task-policy$(suffix)" --settings "onnx/models/$task/policy/settings.json" \
+  log="$WORK/logs/policy-$(name "$task")$(suffix).log"
+  echo "== train the diffusion-policy baseline for $(name "$task"), seed $SEED (log: $log)"
+  "$DIPS" train --policy --task "$task" --data "$(data "$task")" \
+    --out "$WORK/models/$(name "$task")-policy$(suffix)" --settings "onnx/models/$task/policy/settings.json" \
     --seed "$SEED" --quiet > "$log" 2>&1 &
   pids+=($!)
 done
 for p in "${pids[@]}"; do wait "$p"; done
 for task in "${TASK_LIST[@]}"; do
   mkdir -p "$(shipped "$task")/policy"
-  [[ $SEED == 0 ]] || cp "onnx/models/$task/policy/settings.json" "$(shipped "$task")/policy/"
+  own_settings "$task" || cp "onnx/models/$task/policy/settings.json" "$(shipped "$task")/policy/"
   for f in denoiser.onnx train_report.json; do
-    cp "$WORK/models/$task-policy$(suffix)/$f" "$(shipped "$task")/policy/$f"
+    cp "$WORK/models/$(name "$task")-policy$(suffix)/$f" "$(shipped "$task")/policy/$f"
   done
 done
 
 for task in "${TASK_LIST[@]}"; do
   out="$(shipped "$task")"
   mkdir -p "$out"
-  [[ $SEED == 0 ]] || cp "onnx/models/$task/settings.json" "$out/settings.json"
+  own_settings "$task" || cp "onnx/models/$task/settings.json" "$out/settings.json"
   for f in denoiser.onnx discriminator.onnx prior.json train_report.json; do
     cp "$(work_models "$task")/$f" "$out/$f"
   done
   echo "== quality $task"
-  "$DIPS" model quality --task "$task" --models "$out" --data "$WORK/data/$task"
-  "$DIPS" model card --task "$task" --models "$out" --command "SEED=$SEED TASKS=$task scripts/make-models.sh"
+  "$DIPS" model quality --task "$task" --models "$out" --data "$(data "$task")"
+  "$DIPS" model card --task "$task" --models "$out" \
+    --command "SEED=$SEED TASKS=$task CARD_GOALS=$CARD_GOALS scripts/make-models.sh"
 done

@@ -237,9 +237,12 @@ pub struct Models {
 }
 
 /// The card goals the denoiser in `dir` was trained for (`dips.card_goals`), `None` when it
-/// does not say.
+/// does not say or `dir` holds no denoiser (a run of methods that need none).
 pub fn models_card_goals(dir: &Path) -> anyhow::Result<Option<CardGoals>> {
     let file = dir.join(model_file(Role::Denoiser));
+    if !file.is_file() {
+        return Ok(None);
+    }
     dips_onnx::contract::read_proto(&file)
         .and_then(|p| dips_onnx::contract::card_goals(&p))
         .with_context(|| format!("loading {}", file.display()))

@@ -10,7 +10,7 @@ use clap::Args;
 use dips_host::execute::ExecSettings;
 use dips_host::hand::Hands;
 use dips_host::online::{Method, OnlineSettings, run_online};
-use dips_host::planning::{Models, PlanService, models_dir};
+use dips_host::planning::{Models, PlanService, models_card_goals, models_dir, resolve_card_goals};
 use dips_host::problems::Mode;
 use dips_host::problems::mode::parse_mode;
 use dips_host::scenes::SceneKind;
@@ -51,6 +51,9 @@ pub struct EpisodeArgs {
     /// The search's flags.
     #[command(flatten)]
     pub search: SearchArgs,
+    /// The card's goals.
+    #[command(flatten)]
+    pub card_goals: crate::search_args::CardGoalsArgs,
     /// The episode's search depth flag.
     #[command(flatten)]
     pub depth: crate::search_args::DepthArgs,
@@ -115,7 +118,17 @@ pub fn run(args: EpisodeArgs, hands: &dyn Hands) -> anyhow::Result<()> {
         max_modes: args.max_modes,
         search_depth: args.depth.search_depth,
     };
-    let exec = ExecSettings::for_task(task);
+    let mut exec = ExecSettings::for_task(task);
+    let trained = match (&models, &args.models) {
+        (Some(m), _) => Some((m.dir.clone(), m.trained_card_goals())),
+        // A method without models (csvto-sampled) still executes the goals of models given.
+        (None, Some(dir)) => Some((dir.clone(), models_card_goals(dir)?.unwrap_or_default())),
+        (None, None) => None,
+    };
+    exec.card_goals = resolve_card_goals(
+        args.card_goals.given(task.task())?,
+        trained.as_ref().map(|(d, g)| (d.as_path(), *g)),
+    )?;
     let kind = args.hand.kind();
     let mut hand = hands
         .open(kind, task, &hand_options)

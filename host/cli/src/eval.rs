@@ -94,6 +94,9 @@ pub struct EvalArgs {
     /// The search's flags.
     #[command(flatten)]
     pub search: crate::search_args::SearchArgs,
+    /// The card's goals.
+    #[command(flatten)]
+    pub card_goals: crate::search_args::CardGoalsArgs,
     /// Where the planning calls are made: `in-process`, `spawn` (a `dips-firmware-sim` child
     /// per episode), `spawn:PATH` or `tcp://HOST:PORT` (with `--jobs 1`). The results are the
     /// same bit for bit.
@@ -303,7 +306,17 @@ pub fn run(args: EvalArgs, hands: &dyn Hands) -> anyhow::Result<()> {
             _ => args.hand.noise()?,
         },
         registration: None,
+        card_goals: Default::default(),
     };
+    settings.card_goals = dips_host::planning::resolve_card_goals(
+        args.card_goals
+            .given(task.task())?
+            .or(given.map(|e| e.episode.card_goals)),
+        Some((
+            settings.models.as_path(),
+            dips_host::planning::models_card_goals(&settings.models)?.unwrap_or_default(),
+        )),
+    )?;
     if let Some(file) = &args.write_protocol {
         return write_protocol(file, args.protocol_name.as_deref(), &settings);
     }

@@ -71,6 +71,9 @@ pub struct PlanArgs {
     /// The search's flags.
     #[command(flatten)]
     pub search: crate::search_args::SearchArgs,
+    /// The card's goals.
+    #[command(flatten)]
+    pub card_goals: crate::search_args::CardGoalsArgs,
     /// Print JSON instead of readable `key: value` lines.
     #[arg(long)]
     pub json: bool,
@@ -144,6 +147,10 @@ pub fn run(args: PlanArgs) -> anyhow::Result<()> {
     let mut models = Models::load(kind, &dir, task)?;
     models.set_threads(crate::model::threads(args.threads)?);
     models.check_sampler(&sampler, task)?;
+    spec = spec.with_card_goals(dips_host::planning::resolve_card_goals(
+        args.card_goals.given(task)?,
+        Some((dir.as_path(), models.trained_card_goals())),
+    )?);
     let prior_source = match models.prior {
         Some(prior) => {
             spec.prior = prior;

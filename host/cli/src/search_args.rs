@@ -220,16 +220,34 @@ pub struct SearchArgs {
     /// `last-segment` (the authors' code). Default: the task's (`docs/search.md`).
     #[arg(long, value_parser = named::<CostToCome>())]
     pub cost_to_come: Option<CostToCome>,
+    /// Weight α of the heuristic's terminal cost (≥ 0). Default: the task's, screwdriver 1e4
+    /// (the paper's), card 1e5 (the authors' code's; the paper's is 1e4).
+    #[arg(long, allow_negative_numbers = true, value_parser = parse_weight)]
+    pub alpha: Option<f32>,
+    /// Weight β of the heuristic's prior term (≥ 0). Default: the task's, screwdriver 1e3
+    /// (the paper's), card 0 (the authors' code's; the paper's is 1e3).
+    #[arg(long, allow_negative_numbers = true, value_parser = parse_weight)]
+    pub beta: Option<f32>,
+}
+
+/// `--alpha`, `--beta`: a finite weight ≥ 0.
+pub fn parse_weight(s: &str) -> Result<f32, String> {
+    match s.trim().parse::<f32>() {
+        Ok(v) if v.is_finite() && v >= 0.0 => Ok(v),
+        _ => Err(format!("must be a finite number ≥ 0, got `{s}`")),
+    }
 }
 
 impl SearchArgs {
     /// The search settings these flags give over the task's ([`SearchOverrides`]: the node
-    /// budget and the cost-to-come; `None`: the task's), resolved by
+    /// budget, the cost-to-come, α and β; `None`: the task's), resolved by
     /// [`SearchOverrides::resolve`].
     pub fn overrides(&self) -> SearchOverrides {
         SearchOverrides {
             node_budget: self.node_budget,
             cost_to_come: self.cost_to_come,
+            alpha: self.alpha,
+            beta: self.beta,
             ..SearchOverrides::default()
         }
     }

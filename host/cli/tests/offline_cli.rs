@@ -1,7 +1,8 @@
 //! The offline pipeline from nothing, as a user runs it: `dips datagen` (two real card demos
 //! with the default CSVTO settings), `dips train` (a tiny network, a few steps, from a
-//! settings file), then `dips model check` and `dips plan` on what it wrote. Also the CLI's
-//! errors for bad flags.
+//! settings file), then `dips model check` and `dips plan` on what it wrote; the demos are made
+//! with the paper's card goals, which travel from the demos to the models to the planner. Also
+//! the CLI's errors for bad flags.
 
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -50,6 +51,8 @@ fn datagen_then_train_then_check_and_plan() {
         "datagen",
         "--task",
         "card",
+        "--card-goals",
+        "paper",
         "--demos",
         "2",
         "--out",
@@ -61,6 +64,9 @@ fn datagen_then_train_then_check_and_plan() {
         "{}",
         String::from_utf8_lossy(&out.stderr)
     );
+    let settings: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(data.join("datagen.json")).unwrap()).unwrap();
+    assert_eq!(settings["batches"][0]["exec"]["card_goals"], "paper");
     let report: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
     assert_eq!(report["generated"], 2);
     assert_eq!(report["manifest"]["seeds"], serde_json::json!([0, 1]));
@@ -70,6 +76,8 @@ fn datagen_then_train_then_check_and_plan() {
         "datagen",
         "--task",
         "card",
+        "--card-goals",
+        "paper",
         "--demos",
         "2",
         "--out",
@@ -80,6 +88,22 @@ fn datagen_then_train_then_check_and_plan() {
     assert_eq!(
         (again["generated"].as_u64(), again["skipped"].as_u64()),
         (Some(0), Some(2))
+    );
+    // The same seeds with our goals would mix two kinds of demos: refused, naming both.
+    let ours = dips(&[
+        "datagen",
+        "--task",
+        "card",
+        "--demos",
+        "2",
+        "--out",
+        data.to_str().unwrap(),
+        "--quiet",
+    ]);
+    let err = String::from_utf8_lossy(&ours.stderr);
+    assert!(
+        !ours.status.success() && err.contains("card_goals") && err.contains("paper"),
+        "{err}"
     );
 
     let settings = dir.join("tiny.json");
@@ -130,16 +154,61 @@ fn datagen_then_train_then_check_and_plan() {
         "{}",
         String::from_utf8_lossy(&out.stderr)
     );
+    // The models say which goals they were trained for; other goals are refused, naming both.
+    let out = dips(&[
+        "plan",
+        "--task",
+        "card",
+        "--models",
+        models.to_str().unwrap(),
+        "--card-goals",
+        "capped",
+    ]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        !out.status.success()
+            && err.contains("--card-goals capped")
+            && err.contains("card goals paper"),
+        "{err}"
+    );
     std::fs::remove_dir_all(&dir).ok();
 }
 
 #[test]
 fn bad_offline_flags_are_clear_errors() {
     let dir = tmp("flags");
-    let cases: [(&[&str], &str); 4] = [
+    let cases: [(&[&str], &str); 6] = [
         (
             &["datagen", "--task", "cube", "--demos", "1", "--out", "x"],
             "unknown task",
+        ),
+        (
+            &[
+                "datagen",
+                "--task",
+                "card",
+                "--card-goals",
+                "flat",
+                "--demos",
+                "1",
+                "--out",
+                "x",
+            ],
+            "unknown card goals `flat` (expected paper or capped)",
+        ),
+        (
+            &[
+                "datagen",
+                "--task",
+                "screwdriver",
+                "--card-goals",
+                "paper",
+                "--demos",
+                "1",
+                "--out",
+                "x",
+            ],
+            "the screwdriver has no pushes",
         ),
         (
             &[

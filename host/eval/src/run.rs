@@ -111,7 +111,10 @@ fn run_episode(
         } else {
             None
         };
-        let exec = ExecSettings::for_task(settings.task);
+        let exec = ExecSettings {
+            card_goals: settings.card_goals,
+            ..ExecSettings::for_task(settings.task)
+        };
         // Opened on this worker thread: a hand need not be `Send`.
         let mut hand = hands.open(
             settings.hand,

@@ -8,6 +8,7 @@ use dips_host::hand::{HandKind, TrackerNoise};
 use dips_host::online::{Method, OnlineSettings, SearchDepth, check_time_budget_s};
 use dips_host::scenes::SceneKind;
 use dips_kernel::search::CostToCome;
+use dips_kernel::task::CardGoals;
 use dips_link::KernelTarget;
 use dips_onnx::EngineKind;
 use serde::{Deserialize, Serialize};
@@ -35,6 +36,12 @@ pub struct EpisodeSettings {
     /// was recorded used the task's rule of then, which is filled in when they are read.
     #[serde(default)]
     pub search_depth: String,
+    /// The heuristic's `α` when `--alpha` set it (absent: the task's).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub alpha: Option<f32>,
+    /// The heuristic's `β` when `--beta` set it (absent: the task's).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub beta: Option<f32>,
     /// Models directory (absolute).
     pub models: String,
     /// Engine of the models (`kernel` or `tract`).
@@ -47,6 +54,10 @@ pub struct EpisodeSettings {
     /// The simulated tracker's noise (`--noise-position`, `--noise-rotation`; absent: none).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub tracker_noise: Option<TrackerNoise>,
+    /// The card's goals (`--card-goals`). Written only when they are not ours, so that files
+    /// and protocols written before they could differ read as before: absent means `capped`.
+    #[serde(default, skip_serializing_if = "CardGoals::is_capped")]
+    pub card_goals: CardGoals,
 }
 
 impl EpisodeSettings {
@@ -123,6 +134,9 @@ pub struct EvalSettings {
     /// Tracker noise of the executing hand (`None`: the exact pose); episode `s` seeds it with
     /// `s`.
     pub tracker_noise: Option<TrackerNoise>,
+    /// The card's goals every method executes and plans with (resolved against the models',
+    /// [`dips_host::planning::resolve_card_goals`]).
+    pub card_goals: CardGoals,
     /// The run's registration under a protocol (`dips eval --protocol`,
     /// [`crate::protocol::ProtocolFile::register`]), written to `registration.json` when the
     /// directory is claimed; `None` for a run without a protocol.
@@ -208,6 +222,8 @@ impl EvalSettings {
             max_modes: self.online.max_modes,
             cost_to_come: search.cost_to_come.name().to_string(),
             search_depth: self.online.depth_rule(self.task).name().to_string(),
+            alpha: self.online.search.alpha,
+            beta: self.online.search.beta,
             models: std::path::absolute(&self.models)
                 .unwrap_or_else(|_| self.models.clone())
                 .display()
@@ -219,6 +235,7 @@ impl EvalSettings {
             .to_string(),
             hand: self.hand,
             tracker_noise: self.tracker_noise,
+            card_goals: self.card_goals,
         }
     }
 }
@@ -278,7 +295,7 @@ pub fn claim_dir(dir: &Path, settings: &EvalSettings) -> anyhow::Result<EvalFile
             bail!(
                 "{} holds an evaluation with other settings: {name} is {there} there and {here} \
                  here; use another --out, or the same task, sampler, budgets, mode limit, \
-                 cost-to-come, search depth, models, engine, hand and tracker noise",
+                 cost-to-come, search depth, models, engine, hand, tracker noise and card goals",
                 dir.join(EVAL_FILE).display(),
             );
         }
@@ -330,11 +347,32 @@ mod tests {
             max_modes: None,
             cost_to_come: "cumulative".into(),
             search_depth: "modes-left".into(),
+            alpha: None,
+            beta: None,
             models: "/m".into(),
             engine: "kernel".into(),
             hand: HandKind::World,
             tracker_noise: None,
+            card_goals: CardGoals::Capped,
         }
+    }
+
+    #[test]
+    fn the_card_goals_round_trip_and_ours_are_the_default() {
+        let ours = serde_json::to_value(settings()).unwrap();
+        assert!(ours.get("card_goals").is_none(), "old files read as before");
+        let paper = EpisodeSettings {
+            card_goals: CardGoals::Paper,
+            ..settings()
+        };
+        let v = serde_json::to_value(&paper).unwrap();
+        assert_eq!(v["card_goals"], "paper");
+        assert_eq!(serde_json::from_value::<EpisodeSettings>(v).unwrap(), paper);
+        assert_eq!(
+            settings().first_difference(&paper),
+            ("--card-goals".into(), "(absent)".into(), "\"paper\"".into()),
+            "a resumed run with other card goals is refused"
+        );
     }
 
     #[test]

@@ -48,6 +48,7 @@ fn settings(methods: Vec<Method>, trials: usize) -> EvalSettings {
         hand: Default::default(),
         tracker_noise: None,
         registration: None,
+        card_goals: Default::default(),
     }
 }
 

@@ -70,6 +70,7 @@ fn settings(models: &Path, methods: Vec<Method>, first_seed: u64) -> EvalSetting
         hand: Default::default(),
         tracker_noise: None,
         registration: None,
+        card_goals: Default::default(),
     }
 }
 

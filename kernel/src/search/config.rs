@@ -192,7 +192,7 @@ impl SearchConfig {
 /// evaluation's settings): each `None` leaves the task's ([`SearchConfig::for_task`]).
 /// [`SearchOverrides::resolve`] is the one place where "not given" becomes the task's value;
 /// the call's seed and wall-clock budget are always given by the caller.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct SearchOverrides {
     /// Particles per node (`k`; `None`: 16).
     pub k: Option<u16>,
@@ -205,6 +205,12 @@ pub struct SearchOverrides {
     pub cost_to_come: Option<CostToCome>,
     /// Particle or max-likelihood nodes (`None`: particles).
     pub variant: Option<SearchVariant>,
+    /// Weight `α` of the terminal cost in the heuristic (`None`: the task's, screwdriver
+    /// 1e4 as in the paper, card 1e5 as in the authors' code).
+    pub alpha: Option<f32>,
+    /// Weight `β` of the prior's negative log-likelihood in the heuristic (`None`: the
+    /// task's, screwdriver 1e3 as in the paper, card 0 as in the authors' code).
+    pub beta: Option<f32>,
 }
 
 impl SearchOverrides {
@@ -220,6 +226,8 @@ impl SearchOverrides {
             seed,
             cost_to_come: self.cost_to_come.unwrap_or(base.cost_to_come),
             variant: self.variant.unwrap_or(base.variant),
+            alpha: self.alpha.unwrap_or(base.alpha),
+            beta: self.beta.unwrap_or(base.beta),
             ..base
         }
     }
@@ -305,6 +313,8 @@ mod tests {
             node_budget: Some(0),
             cost_to_come: Some(CostToCome::Cumulative),
             variant: Some(SearchVariant::MaxLikelihood),
+            alpha: None,
+            beta: None,
         };
         let c = given.resolve(Task::Card, 1, 250);
         assert_eq!((c.k, c.max_depth, c.node_budget), (4, 3, 0));
@@ -312,6 +322,17 @@ mod tests {
         assert_eq!(c.cost_to_come, CostToCome::Cumulative);
         assert_eq!(c.variant, SearchVariant::MaxLikelihood);
         assert_eq!((c.alpha, c.beta), (1e5, 0.0), "the card's own weights stay");
+        let paper = SearchOverrides {
+            alpha: Some(1e4),
+            beta: Some(1e3),
+            ..given
+        };
+        let c = paper.resolve(Task::Card, 1, 250);
+        assert_eq!(
+            (c.alpha, c.beta),
+            (1e4, 1e3),
+            "the paper's weights for the card"
+        );
     }
 
     #[test]
