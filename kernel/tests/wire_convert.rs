@@ -17,7 +17,7 @@ use dips_kernel::search::{
     ApproximateReason, Capacity, CostToCome, SearchConfig, SearchStatus, SearchVariant,
     TaskObjective,
 };
-use dips_kernel::task::Objective;
+use dips_kernel::task::{CardGoals, CardObjective, Objective};
 use dips_kernel::wire_convert::*;
 use dips_wire::{
     Feed, Frame, FrameAccumulator, FromKernel, MAX_ENCODED_FRAME_LEN, PlanCapacity, PlanReply,
@@ -243,6 +243,30 @@ fn requests_are_checked_field_by_field() {
     let card = PlanInputs::from_request(&card_previous).unwrap();
     assert_eq!(card.executed, Some(ModeId(3)));
     assert!(matches!(card.objective, Objective::Card(o) if o.goal_y == -0.06));
+    assert!(matches!(card.objective, Objective::Card(o) if o.goals == CardGoals::Capped));
+}
+
+#[test]
+fn the_card_goals_travel_both_ways() {
+    let start = screwdriver_start(0.4);
+    let spec = dips_kernel::session::PlanSpec::new(Task::Card, &start[..12], -0.06)
+        .unwrap()
+        .with_card_goals(CardGoals::Paper);
+    let request = spec.to_request();
+    assert_eq!(request.card_goals, dips_wire::CardGoals::Paper);
+    let inputs = PlanInputs::from_request(&request).unwrap();
+    let Objective::Card(o) = inputs.objective else {
+        panic!("a card objective");
+    };
+    assert_eq!(o.goals, CardGoals::Paper);
+    // The paper's test is exact: half a millimetre short of the goal is not there; ours is.
+    assert!(!o.goal_reached(-0.0595));
+    assert!(CardObjective::new(-0.06).goal_reached(-0.0595));
+    // The screwdriver ignores them.
+    let screwdriver = dips_kernel::session::PlanSpec::new(Task::Screwdriver, &start, -0.6)
+        .unwrap()
+        .with_card_goals(CardGoals::Paper);
+    assert_eq!(screwdriver.card_goals(), CardGoals::Capped);
 }
 
 #[test]
