@@ -145,14 +145,32 @@ fn card_text(
             format!("{:.2} MB", m.len() as f64 / 1e6)
         })
     };
+    // Which models these are: the task's default directory, or another (a training seed, the
+    // paper's card goals).
+    let name = dir
+        .file_name()
+        .map_or(task.to_string(), |n| n.to_string_lossy().into_owned());
+    let role = if name == task {
+        format!("The default models of `dips plan` for the {task} task")
+    } else {
+        format!("Models for the {task} task (`--models onnx/models/{name}`)")
+    };
+    let goals = match dips_host::planning::models_card_goals(dir)? {
+        Some(g) => format!(
+            " Trained on demos whose card pushes aimed with the `{g}` card goals \
+             (`dips.card_goals`; `docs/search.md`, \"The card's goals\"); the planner plans and \
+             executes with them."
+        ),
+        None => String::new(),
+    };
     let mut t = String::new();
-    t.push_str(&format!("# Model card: {task}\n\n"));
+    t.push_str(&format!("# Model card: {name}\n\n"));
     t.push_str(&format!(
-        "The default models of `dips plan` for the {task} task: `denoiser.onnx` (the diffusion \
+        "{role}: `denoiser.onnx` (the diffusion \
          model M(c, s₀), contract v1), `discriminator.onnx` (Ψ) and `prior.json` (the contact-mode \
          prior fitted from the demos' mode sequences, p_min {}). Made by the project's own \
          pipeline: `dips datagen` (CSVTO in the world), `dips train` (burn, CPU), `dips model \
-         quality`.\n\n",
+         quality`.{goals}\n\n",
         r["prior"]["p_min"]
     ));
     if let Some(cmd) = command {
