@@ -38,6 +38,28 @@ fn shipped_models_load_on_both_engines_with_their_prior() {
 }
 
 #[test]
+fn the_card_models_say_which_card_goals_they_were_trained_for() {
+    use dips_host::planning::{models_card_goals, resolve_card_goals};
+    use dips_kernel::task::CardGoals;
+    let paper = dir(Task::Card).with_file_name("card-paper");
+    let m = Models::load(EngineKind::Kernel, &paper, Task::Card).unwrap();
+    assert_eq!(m.card_goals, Some(CardGoals::Paper));
+    // The shipped card models predate the key: ours.
+    assert_eq!(models_card_goals(&dir(Task::Card)).unwrap(), None);
+    assert_eq!(
+        resolve_card_goals(None, Some((&paper, m.trained_card_goals()))).unwrap(),
+        CardGoals::Paper
+    );
+    let e = resolve_card_goals(Some(CardGoals::Capped), Some((&paper, CardGoals::Paper)))
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("card-paper") && e.contains("--card-goals paper"),
+        "{e}"
+    );
+}
+
+#[test]
 fn model_cards_carry_the_measured_figures() {
     for task in Task::ALL {
         let report = json(dir(task).join("train_report.json"));
