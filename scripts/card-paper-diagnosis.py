@@ -1,0 +1,123 @@
+#!/usr/bin/env python3
+"""Why DIPS overshoots the card under the paper's goals (issue 38 item 2), from the tuning runs
+of scripts/card-paper-tuning.sh (seeds 500-509) and the card-paper demos.
+
+Usage: scripts/card-paper-diagnosis.py [DATA_DIR] > docs/results/card/paper-tuning-500-diagnosis.json
+  DATA_DIR: the demos (default target/models-work/data/card-paper, `dips datagen --task card
+  --card-goals paper --demos 128`); left out when absent.
+
+Per run and method: the outcome (distance to the goal, cm; valid trials), the executed pushes'
+length (cm of y per index/middle/both mode), where the card was after its third push, how many
+pushes the trial made, and for every planning call of a searching method the model's expected
+end of the plan's first mode against the executed one. From the demos: the push length by
+start position (1 cm bins), which is what any plan of whole pushes is made of.
+"""
+import glob
+import json
+import os
+import statistics as st
+import struct
+import sys
+
+RUNS = ["docs/results/card/paper-tuning-500-code", "docs/results/card/paper-tuning-500-paper"]
+PUSHES = ("index", "middle", "both")
+
+
+def mean(v):
+    return round(st.mean(v), 3) if v else None
+
+
+def card_y(state):
+    return state[-2] * 100.0
+
+
+def episode_figures(results):
+    pushes, after_third, counts, first_mode_error, believed = [], [], [], [], []
+    for r in results:
+        ys = []
+        n = 0
+        for run in r["mode_runs"]:
+            if run["mode"] in PUSHES:
+                pushes.append(card_y(run["end_state"]) - card_y(run["start_state"]))
+                n += 1
+                if n == 3:
+                    after_third.append(card_y(run["end_state"]))
+            ys.append(card_y(run["end_state"]))
+        counts.append(n)
+        # The first call's plan from the start (y = 0): its expected end over its pushes is the
+        # push length the models believe in.
+        plans = r.get("plans", [])
+        if plans and plans[0]["expected_terminal_state"][9] is not None:
+            n_planned = sum(m in PUSHES for m in plans[0]["modes"])
+            if n_planned:
+                believed.append(plans[0]["expected_terminal_state"][9] * 100.0 / n_planned)
+        # The plan's expected end (its whole plan) is all a call reports; its first mode's
+        # expected end is not recorded, so compare the one-mode plans (the last calls).
+        for call, plan in enumerate(r.get("plans", [])):
+            exp = plan["expected_terminal_state"]
+            if len(plan["modes"]) == 1 and call < len(r["mode_runs"]) and exp[9] is not None:
+                executed = card_y(r["mode_runs"][call]["end_state"])
+                first_mode_error.append(executed - exp[9] * 100.0)
+    return {
+        "push_length_cm": {"mean": mean(pushes), "n": len(pushes),
+                           "min": round(min(pushes), 3) if pushes else None,
+                           "max": round(max(pushes), 3) if pushes else None},
+        "y_after_third_push_cm": {"mean": mean(after_third), "n": len(after_third)},
+        "pushes_per_trial": {str(k): counts.count(k) for k in sorted(set(counts))},
+        "one_mode_plans_executed_minus_expected_cm": {"mean": mean(first_mode_error),
+                                                      "n": len(first_mode_error)},
+        "first_plan_expected_push_length_cm": {"mean": mean(believed), "n": len(believed)},
+    }
+
+
+def runs():
+    out = {}
+    for run in RUNS:
+        if not os.path.isdir(run):
+            continue
+        methods = {}
+        for mdir in sorted(glob.glob(f"{run}/episodes/*")):
+            res = [json.load(open(f)) for f in sorted(glob.glob(f"{mdir}/*/result.json"))]
+            if not res:
+                continue
+            d = [r["final_distance_m"] * 100.0 for r in res]
+            dv = [r["final_distance_m"] * 100.0 for r in res if r["valid"]]
+            methods[os.path.basename(mdir)] = {
+                "trials": len(res),
+                "valid": len(dv),
+                "distance_cm_mean_all": mean(d),
+                "distance_cm_mean_valid": mean(dv),
+                "distance_cm_median": round(st.median(d), 3),
+                **episode_figures(res),
+            }
+        out[os.path.basename(run)] = methods
+    return out
+
+
+def demos(data):
+    bins = {}
+    for f in sorted(glob.glob(f"{data}/demos/*.safetensors")):
+        with open(f, "rb") as fh:
+            n = struct.unpack("<Q", fh.read(8))[0]
+            meta = json.loads(fh.read(n))["__metadata__"]
+        for m in json.loads(meta["outcome"])["modes"]:
+            if m["mode"] in PUSHES:
+                y0 = card_y(m["start_state"])
+                bins.setdefault(int(-y0), []).append(card_y(m["end_state"]) - y0)
+    return {f"{b}-{b + 1} cm": {"n": len(v), "mean": mean(v)} for b, v in sorted(bins.items())}
+
+
+def main():
+    data = sys.argv[1] if len(sys.argv) > 1 else "target/models-work/data/card-paper"
+    report = {
+        "command": "scripts/card-paper-diagnosis.py " + data,
+        "runs": runs(),
+    }
+    if os.path.isdir(data):
+        report["demo_push_length_cm_by_start"] = demos(data)
+    json.dump(report, sys.stdout, indent=1)
+    print()
+
+
+if __name__ == "__main__":
+    main()
