@@ -6,6 +6,10 @@ Usage: scripts/card-paper-diagnosis.py [DATA_DIR] > docs/results/card/paper-tuni
   DATA_DIR: the demos (default target/models-work/data/card-paper, `dips datagen --task card
   --card-goals paper --demos 128`); left out when absent.
 
+The paired differences (DIPS minus each method, from results.json) are computed from the
+committed files; the per-episode figures need the full runs (commit 717570b, or
+target/kept-episodes/ where the trimmed episodes were moved).
+
 Per run and method: the outcome (distance to the goal, cm; valid trials), the executed pushes'
 length (cm of y per index/middle/both mode), where the card was after its third push, how many
 pushes the trial made, and for every planning call of a searching method the model's expected
@@ -70,14 +74,35 @@ def episode_figures(results):
     }
 
 
+def paired(run):
+    """DIPS minus each other method, per seed, from the run's results.json: mean and SE (cm)."""
+    path = f"{run}/results.json"
+    if not os.path.isfile(path):
+        return {}
+    by = {}
+    for t in json.load(open(path))["trials"]:
+        by.setdefault(t["method"], {})[t["seed"]] = t["outcome"]
+    dips = by.get("dips", {})
+    out = {}
+    for method, seeds in by.items():
+        d = [dips[s] - seeds[s] for s in seeds if s in dips and method != "dips"]
+        if len(d) > 1:
+            out[method] = {"mean": round(st.mean(d), 3),
+                           "se": round(st.stdev(d) / len(d) ** 0.5, 3), "n": len(d)}
+    return out
+
+
 def runs():
     out = {}
     for run in RUNS:
         if not os.path.isdir(run):
             continue
-        methods = {}
+        methods = {"paired_dips_minus": paired(run)}
+        kept = f"target/kept-episodes/card/{os.path.basename(run)}"
         for mdir in sorted(glob.glob(f"{run}/episodes/*")):
-            res = [json.load(open(f)) for f in sorted(glob.glob(f"{mdir}/*/result.json"))]
+            files = glob.glob(f"{mdir}/*/result.json")
+            files += glob.glob(f"{kept}/episodes/{os.path.basename(mdir)}/*/result.json")
+            res = [json.load(open(f)) for f in sorted(files)]
             if not res:
                 continue
             d = [r["final_distance_m"] * 100.0 for r in res]
