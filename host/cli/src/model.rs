@@ -113,10 +113,16 @@ pub fn run(args: ModelArgs) -> anyhow::Result<()> {
             dips_onnx::lower::tensors::check_initializers_finite(&proto)?;
             let lowered = dips_onnx::lower_proto(&proto)
                 .with_context(|| format!("lowering {}", file.display()))?;
+            // What the trainer recorded beside the contract (absent: the model does not say).
+            let trained = serde_json::json!({
+                "card_goals": contract::card_goals(&proto)?,
+                "psi_negatives": contract::psi_negatives(&proto)?,
+            });
             let summary = serde_json::json!({
                 "file": file.display().to_string(),
                 "valid": true,
                 "contract": c,
+                "trained": trained,
                 "inputs": c.role.input_names().iter().map(|n| {
                     let mut shape = vec![serde_json::json!("batch")];
                     shape.extend(c.input_shape(n).unwrap_or_default().into_iter().map(serde_json::Value::from));

@@ -136,6 +136,10 @@ fn datagen_then_train_then_check_and_plan() {
         );
         let text = String::from_utf8_lossy(&out.stdout);
         assert!(text.contains(role) && text.contains("card"), "{text}");
+        let summary: serde_json::Value = serde_json::from_str(&text).unwrap();
+        if role == "denoiser" {
+            assert_eq!(summary["trained"]["card_goals"], "paper", "{text}");
+        }
     }
     let out = dips(&[
         "plan",
