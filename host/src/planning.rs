@@ -248,21 +248,35 @@ pub fn models_card_goals(dir: &Path) -> anyhow::Result<Option<CardGoals>> {
         .with_context(|| format!("loading {}", file.display()))
 }
 
-/// The card goals of an episode or evaluation: `given` (`--card-goals`), else those the
-/// models (`(directory, goals)`, [`Models::trained_card_goals`]) were trained for, else ours.
-/// An error when `given` and the models' differ: a planner whose `J` and goal test aim
-/// elsewhere than its denoiser's pushes plans neither.
+/// Card goals asked for that are not those the models were trained for: a planner whose `J`
+/// and goal test aim elsewhere than its denoiser's pushes plans neither.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error(
+    "the models in {} were trained on demos with card goals {trained}, not {given}",
+    models.display()
+)]
+pub struct CardGoalsMismatch {
+    /// The goals asked for.
+    pub given: CardGoals,
+    /// The goals the models were trained for.
+    pub trained: CardGoals,
+    /// The models' directory.
+    pub models: PathBuf,
+}
+
+/// The card goals of an episode or evaluation: `given`, else those the models
+/// (`(directory, goals)`, [`Models::trained_card_goals`]) were trained for, else ours.
+/// [`CardGoalsMismatch`] when `given` and the models' differ.
 pub fn resolve_card_goals(
     given: Option<CardGoals>,
     models: Option<(&Path, CardGoals)>,
-) -> anyhow::Result<CardGoals> {
+) -> Result<CardGoals, CardGoalsMismatch> {
     match (given, models) {
-        (Some(g), Some((dir, trained))) if g != trained => bail!(
-            "--card-goals {g}: the models in {} were trained on demos with card goals \
-             {trained}; give --card-goals {trained}, or models trained with \
-             `dips datagen --card-goals {g}`",
-            dir.display()
-        ),
+        (Some(given), Some((dir, trained))) if given != trained => Err(CardGoalsMismatch {
+            given,
+            trained,
+            models: dir.to_path_buf(),
+        }),
         (_, Some((_, trained))) => Ok(trained),
         (given, None) => Ok(given.unwrap_or_default()),
     }

@@ -10,7 +10,7 @@ use clap::Args;
 use dips_host::execute::ExecSettings;
 use dips_host::hand::Hands;
 use dips_host::online::{Method, OnlineSettings, run_online};
-use dips_host::planning::{Models, PlanService, models_card_goals, models_dir, resolve_card_goals};
+use dips_host::planning::{Models, PlanService, models_card_goals, models_dir};
 use dips_host::problems::Mode;
 use dips_host::problems::mode::parse_mode;
 use dips_host::scenes::SceneKind;
@@ -125,8 +125,9 @@ pub fn run(args: EpisodeArgs, hands: &dyn Hands) -> anyhow::Result<()> {
         (None, Some(dir)) => Some((dir.clone(), models_card_goals(dir)?.unwrap_or_default())),
         (None, None) => None,
     };
-    exec.card_goals = resolve_card_goals(
-        args.card_goals.given(task.task())?,
+    exec.card_goals = args.card_goals.resolve(
+        task.task(),
+        None,
         trained.as_ref().map(|(d, g)| (d.as_path(), *g)),
     )?;
     let kind = args.hand.kind();

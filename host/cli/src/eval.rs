@@ -308,10 +308,9 @@ pub fn run(args: EvalArgs, hands: &dyn Hands) -> anyhow::Result<()> {
         registration: None,
         card_goals: Default::default(),
     };
-    settings.card_goals = dips_host::planning::resolve_card_goals(
-        args.card_goals
-            .given(task.task())?
-            .or(given.map(|e| e.episode.card_goals)),
+    settings.card_goals = args.card_goals.resolve(
+        task.task(),
+        given.map(|e| e.episode.card_goals),
         Some((
             settings.models.as_path(),
             dips_host::planning::models_card_goals(&settings.models)?.unwrap_or_default(),

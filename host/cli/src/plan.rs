@@ -147,8 +147,9 @@ pub fn run(args: PlanArgs) -> anyhow::Result<()> {
     let mut models = Models::load(kind, &dir, task)?;
     models.set_threads(crate::model::threads(args.threads)?);
     models.check_sampler(&sampler, task)?;
-    spec = spec.with_card_goals(dips_host::planning::resolve_card_goals(
-        args.card_goals.given(task)?,
+    spec = spec.with_card_goals(args.card_goals.resolve(
+        task,
+        None,
         Some((dir.as_path(), models.trained_card_goals())),
     )?);
     let prior_source = match models.prior {

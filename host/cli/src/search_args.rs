@@ -76,6 +76,27 @@ impl CardGoalsArgs {
             (given, _) => Ok(given),
         }
     }
+
+    /// The card goals of the run: `--card-goals` (checked by [`Self::given`]), else `fallback`
+    /// (a protocol's), resolved against the models' (`(directory, goals)`) by
+    /// [`dips_host::planning::resolve_card_goals`]; a mismatch names the flag and the fix.
+    pub fn resolve(
+        &self,
+        task: Task,
+        fallback: Option<CardGoals>,
+        models: Option<(&std::path::Path, CardGoals)>,
+    ) -> anyhow::Result<CardGoals> {
+        let given = self.given(task)?.or(fallback);
+        dips_host::planning::resolve_card_goals(given, models).map_err(|e| {
+            anyhow::anyhow!(
+                "--card-goals {}: {e}; give --card-goals {}, or models trained with `dips \
+                 datagen --card-goals {}`",
+                e.given,
+                e.trained,
+                e.given
+            )
+        })
+    }
 }
 
 impl Named for SearchDepth {
