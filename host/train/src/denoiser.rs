@@ -9,6 +9,7 @@ use burn::tensor::Device;
 use dips_dataset::Dataset;
 use dips_kernel::diffusion::schedule::fill_alpha_bar;
 use dips_kernel::mode::{SegmentDims, Task};
+use dips_kernel::task::CardGoals;
 use serde::Serialize;
 
 use crate::data::{
@@ -65,6 +66,9 @@ pub struct TrainedDenoiser {
     pub diffusion_steps: usize,
     /// Figures.
     pub report: DenoiserReport,
+    /// The card goals its demos were made with, written into the model as `dips.card_goals`
+    /// ([`crate::run`] sets it for the card's planner model; `None`: not recorded).
+    pub card_goals: Option<CardGoals>,
 }
 
 impl TrainedDenoiser {
@@ -99,6 +103,7 @@ impl TrainedDenoiser {
             self.task,
             self.diffusion_steps,
             &self.norm,
+            self.card_goals,
         )
     }
 }
@@ -363,6 +368,7 @@ pub fn train_denoiser(
         norm,
         diffusion_steps: s.diffusion_steps,
         report,
+        card_goals: None,
     })
 }
 

@@ -3,6 +3,7 @@
 use std::path::Path;
 
 use dips_kernel::mode::Task;
+use dips_kernel::task::CardGoals;
 use prost::Message;
 use tract_onnx::pb;
 
@@ -49,13 +50,16 @@ fn json<T: serde::Serialize>(v: &T) -> String {
     serde_json::to_string(v).unwrap_or_default()
 }
 
-/// The denoiser as a contract-v1 ONNX model (batch axis symbolic).
+/// The denoiser as a contract-v1 ONNX model (batch axis symbolic), with the card goals its
+/// demos were made with as `dips.card_goals` when given
+/// ([`dips_onnx::contract::CARD_GOALS_KEY`]).
 pub fn denoiser_model(
     net: &Denoiser,
     params: &ParamStore,
     task: Task,
     diffusion_steps: usize,
     norm: &Normalizer,
+    card_goals: Option<CardGoals>,
 ) -> Result<pb::ModelProto> {
     let dims = net.dims();
     let mut g = Graph::default();
@@ -70,7 +74,17 @@ pub fn denoiser_model(
             value_info("cond_mask", &[]),
         ],
         vec![value_info("eps", &[dims.horizon, dims.dim])],
-        contract_metadata(task, dips_onnx::Role::Denoiser, diffusion_steps, norm)?,
+        {
+            let mut meta =
+                contract_metadata(task, dips_onnx::Role::Denoiser, diffusion_steps, norm)?;
+            if let Some(goals) = card_goals {
+                meta.push((
+                    dips_onnx::contract::CARD_GOALS_KEY.to_string(),
+                    goals.name().to_string(),
+                ));
+            }
+            meta
+        },
     ))
 }
 

@@ -226,19 +226,11 @@ pub fn run(
         })?,
     };
     prior.save(&out_dir.join(PRIOR_FILE))?;
+    // The planner plans and executes with the goals the demos were made with.
     let card_goals = (task == Task::Card).then(|| ds.card_goals()).transpose()?;
-    let den = train_denoiser(&ds, settings, out_dir, opts)?;
-    let mut proto = den.onnx()?;
-    if let Some(goals) = card_goals {
-        // The planner plans and executes with the goals the demos were made with.
-        proto
-            .metadata_props
-            .push(tract_onnx::pb::StringStringEntryProto {
-                key: dips_onnx::contract::CARD_GOALS_KEY.to_string(),
-                value: goals.name().to_string(),
-            });
-    }
-    export::write_model(&out_dir.join(DENOISER_FILE), &proto)?;
+    let mut den = train_denoiser(&ds, settings, out_dir, opts)?;
+    den.card_goals = card_goals;
+    export_denoiser(&den, &out_dir.join(DENOISER_FILE))?;
     let disc = train_discriminator(&ds, settings, &den, out_dir, opts)?;
     export_discriminator(&disc, &out_dir.join(DISCRIMINATOR_FILE))?;
     let split = ds.split(settings.held_out_fraction);
