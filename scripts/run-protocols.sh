@@ -16,12 +16,29 @@ shift
 for name in "$@"; do
     protocol=docs/results/protocols/$name.json
     [[ -f $protocol ]] || { echo "error: $protocol does not exist" >&2; exit 1; }
-    read -r task models < <(python3 -c 'import json,sys; e=json.load(open(sys.argv[1]))["eval"]["episode"]; print(e["task"], e["models"])' "$protocol")
+    # The run's flags from the protocol's settings: a run must give the protocol's values.
+    mapfile -t flags < <(python3 - "$protocol" <<'PY'
+import json, sys
+e = json.load(open(sys.argv[1]))["eval"]["episode"]
+print(e["task"])
+for key in ("models", "sampler", "time_budget_s", "node_budget", "max_modes", "cost_to_come",
+            "search_depth", "alpha", "beta", "engine", "card_goals", "hand"):
+    if e.get(key) is not None:
+        print("--" + key.replace("_", "-"))
+        print(e[key])
+for key in ("position", "rotation"):
+    if (e.get("tracker_noise") or {}).get(key) is not None:
+        print("--noise-" + key)
+        print(e["tracker_noise"][key])
+PY
+)
+    task=${flags[0]}
+    flags=("${flags[@]:1}")
     out=docs/results/$task/${name#"$task"-}
     if [[ -f $out/results.json ]]; then
         echo "$name: finished ($out/results.json), skipped"
         continue
     fi
     "$bin" eval --protocol "$protocol" --out "$out" --jobs 1 --model-threads 1 \
-        --animate none --episode-reports medians --models "$models"
+        --animate none --episode-reports medians "${flags[@]}"
 done
