@@ -18,27 +18,30 @@
 
 use std::time::Instant;
 
-use anyhow::{Context, anyhow, bail};
 use dips_kernel::diffusion::SamplerConfig;
 use dips_kernel::engine::DenoiserEngine;
 use dips_kernel::mode::{ModeId, Task};
 use dips_kernel::name::UnknownValue;
-use dips_kernel::prior::MarkovPrior;
+use dips_kernel::prior::{MarkovPrior, PriorError};
 use dips_kernel::rng::KernelRng;
 use dips_kernel::search::{SearchConfig, SearchOverrides, SearchVariant};
-use dips_kernel::session::PlanSpec;
+use dips_kernel::session::{PlanSpec, SpecError};
 use dips_kernel::task::CardGoals;
 
 use crate::execute::episode::{CARD_MODES, SCREWDRIVER_MODES};
 use crate::execute::{
-    EpisodeResult, ExecSettings, ParticleSummary, PlanRecord, hand_state, mode_goal, pose_valid,
-    prior_sequence_for_seed, run_mode, true_hand_state,
+    EpisodeResult, ExecError, ExecSettings, ParticleSummary, PlanRecord, hand_state, mode_goal,
+    pose_valid, prior_sequence_for_seed, run_mode, true_hand_state,
 };
 use crate::hand::Hand;
 use crate::kinematics::HandModel;
-use crate::planning::{Models, PaperSession, PlanService, StdClock, sample_trajectories};
-use crate::problems::contract::{contract_state, from_contract};
-use crate::problems::{AllegroProblem, Mode, ProblemSpec};
+use crate::planning::{
+    Models, POLICY_DIR, PaperSession, PlanCallError, PlanService, SampleError, StdClock,
+    sample_trajectories,
+};
+use crate::policy::PolicyError;
+use crate::problems::contract::{LayoutError, contract_state, from_contract};
+use crate::problems::{AllegroProblem, Mode, ProblemError, ProblemSpec};
 use crate::scenes::SceneKind;
 
 /// The screwdriver goal of `dips-no-replan` (rad), the paper's.
@@ -99,11 +102,6 @@ impl Method {
         Method::DiffusionPolicy.name(),
     ];
 
-    /// Parse a `--method` name ([`Method`]'s `FromStr`); the error lists the names.
-    pub fn from_name(name: &str) -> anyhow::Result<Self> {
-        Ok(name.parse()?)
-    }
-
     /// Whether the method needs the diffusion models.
     pub const fn needs_models(self) -> bool {
         !matches!(self, Method::CsvtoSampled)
@@ -134,13 +132,112 @@ impl std::fmt::Display for Method {
     }
 }
 
-/// A planning call's wall-clock budget `seconds` (`--time-budget-s`) checked: finite and not
-/// negative (0: no budget). The one check of the flag for every command and settings file.
-pub fn check_time_budget_s(seconds: f64) -> anyhow::Result<f64> {
+/// A planning call's time budget that is not a finite number of seconds ≥ 0
+/// ([`check_time_budget_s`]).
+#[derive(Debug, Clone, Copy, PartialEq, thiserror::Error)]
+#[error("time budget {seconds} s: expected a finite number of seconds ≥ 0 (0: no budget)")]
+pub struct TimeBudgetError {
+    /// The budget given (s).
+    pub seconds: f64,
+}
+
+/// A planning call's wall-clock budget `seconds` checked: finite and not negative (0: no
+/// budget). The one check of the budget for every command and settings file.
+pub fn check_time_budget_s(seconds: f64) -> Result<f64, TimeBudgetError> {
     if !(seconds.is_finite() && seconds >= 0.0) {
-        bail!("--time-budget-s {seconds}: expected a finite number of seconds ≥ 0 (0: no budget)");
+        return Err(TimeBudgetError { seconds });
     }
     Ok(seconds)
+}
+
+/// Why an online episode ([`run_online`]) stopped. Each message names the method, mode or
+/// call and what went wrong.
+#[derive(Debug, thiserror::Error)]
+pub enum OnlineError {
+    /// A mode sequence was given to a method without contact modes.
+    #[error(
+        "method `diffusion-policy` has no contact modes; a mode sequence is for dips-sampled \
+         and csvto-sampled"
+    )]
+    PolicyWithModes,
+    /// A mode sequence was given to a method that plans its own.
+    #[error(
+        "method `{method}` plans its own modes; a given sequence is for dips-sampled and \
+         csvto-sampled"
+    )]
+    SearchWithModes {
+        /// The method.
+        method: Method,
+    },
+    /// The Diffusion Policy baseline was run without models.
+    #[error("method `diffusion-policy` needs its model")]
+    PolicyNeedsModels,
+    /// The models directory has no Diffusion Policy model.
+    #[error("no diffusion-policy model at {}", file.display())]
+    NoPolicyModel {
+        /// The file looked for (`<models>/policy/denoiser.onnx`).
+        file: std::path::PathBuf,
+    },
+    /// A method that needs the diffusion models was run without them.
+    #[error("method `{method}` needs the diffusion models")]
+    NeedsModels {
+        /// The method.
+        method: Method,
+    },
+    /// The paper's prior could not be built.
+    #[error("{0}")]
+    Prior(PriorError),
+    /// The mode's CSVTO problem could not be built.
+    #[error(transparent)]
+    Problem(#[from] ProblemError),
+    /// The denoiser's horizon is not CSVTO's.
+    #[error("the denoiser makes {rows} rows, CSVTO plans {horizon} (+1)")]
+    Horizon {
+        /// Rows of the denoiser's trajectories.
+        rows: usize,
+        /// CSVTO's horizon.
+        horizon: usize,
+    },
+    /// Sampling CSVTO's initialisation failed.
+    #[error("diffusion initialisation of {mode}")]
+    Initialisation {
+        /// The mode.
+        mode: &'static str,
+        /// Why.
+        #[source]
+        source: SampleError,
+    },
+    /// A diffused sample does not convert to CSVTO's layout.
+    #[error("diffused {mode} sample: {error}")]
+    Layout {
+        /// The mode.
+        mode: &'static str,
+        /// Why.
+        error: LayoutError,
+    },
+    /// The measured state is too short to hold the object's pose.
+    #[error("the state is too short")]
+    ShortState,
+    /// The planning call's settings are not a valid call.
+    #[error("planning call: {0}")]
+    Spec(SpecError),
+    /// A planning call failed.
+    #[error("planning before mode {mode} ({location})")]
+    Planning {
+        /// The mode (1-based) the call was to choose.
+        mode: usize,
+        /// Where the call was made ([`PlanService::location`]).
+        location: String,
+        /// Why.
+        #[source]
+        source: PlanCallError,
+    },
+    /// A mode's execution failed.
+    #[error(transparent)]
+    Exec(#[from] ExecError),
+    /// The Diffusion Policy baseline's episode failed.
+    #[error(transparent)]
+    Policy(#[from] PolicyError),
 }
 
 /// A budget in seconds as the kernel's `time_budget_ms`, rounded and saturating at `u32::MAX`.
@@ -271,7 +368,7 @@ pub fn diffusion_particles<H: Hand + ?Sized>(
     settings: &ExecSettings,
     sampler: &SamplerConfig,
     rng: &mut KernelRng,
-) -> anyhow::Result<Vec<Vec<f64>>> {
+) -> Result<Vec<Vec<f64>>, OnlineError> {
     let task = hand.scene();
     let start = hand_state(hand);
     let problem = AllegroProblem::new(
@@ -287,11 +384,10 @@ pub fn diffusion_particles<H: Hand + ?Sized>(
     let engine = &mut models.denoiser;
     let dims = DenoiserEngine::dims(engine);
     if dims.horizon != settings.horizon + 1 {
-        bail!(
-            "the denoiser makes {} rows, CSVTO plans {} (+1)",
-            dims.horizon,
-            settings.horizon
-        );
+        return Err(OnlineError::Horizon {
+            rows: dims.horizon,
+            horizon: settings.horizon,
+        });
     }
     let n = settings.particles;
     let td = dims.floats_per_trajectory();
@@ -302,13 +398,20 @@ pub fn diffusion_particles<H: Hand + ?Sized>(
     let s0: Vec<f32> = contract_state(&start).iter().map(|&v| v as f32).collect();
     let starts: Vec<f32> = (0..n).flat_map(|_| s0.iter().copied()).collect();
     let anchor = dips_kernel::session::start_anchor(hand.scene().task());
-    let out = sample_trajectories(engine, sampler, &context, &starts, anchor, rng)
-        .with_context(|| format!("diffusion initialisation of {}", mode.name()))?;
+    let out =
+        sample_trajectories(engine, sampler, &context, &starts, anchor, rng).map_err(|source| {
+            OnlineError::Initialisation {
+                mode: mode.name(),
+                source,
+            }
+        })?;
     out.chunks_exact(td)
         .map(|t| {
             let rows: Vec<f64> = t.iter().map(|&v| f64::from(v)).collect();
-            from_contract(&problem, &rows)
-                .map_err(|e| anyhow!("diffused {} sample: {e}", mode.name()))
+            from_contract(&problem, &rows).map_err(|error| OnlineError::Layout {
+                mode: mode.name(),
+                error,
+            })
         })
         .collect()
 }
@@ -346,7 +449,7 @@ fn plan_call<H: Hand + ?Sized>(
     settings: &OnlineSettings,
     card_goals: CardGoals,
     seed: u64,
-) -> anyhow::Result<(Vec<Mode>, PlanRecord)> {
+) -> Result<(Vec<Mode>, PlanRecord), OnlineError> {
     let scene = hand.scene();
     let task = scene.task();
     let start: Vec<f32> = contract_state(&hand_state(hand))
@@ -355,24 +458,22 @@ fn plan_call<H: Hand + ?Sized>(
         .collect();
     let goal = match (method, task) {
         (Method::DipsNoReplan, Task::Screwdriver) => NO_REPLAN_YAW_GOAL,
-        _ => PlanSpec::paper_goal(task, &start).context("the state is too short")?,
+        _ => PlanSpec::paper_goal(task, &start).ok_or(OnlineError::ShortState)?,
     };
     let config = search_config(method, task, depth, settings, seed);
     let mut spec = PlanSpec::with_settings(task, &start, goal, config, prior)
-        .map_err(|e| anyhow!("planning call: {e}"))?
+        .map_err(OnlineError::Spec)?
         .with_card_goals(card_goals);
     spec.sampler = settings.sampler;
     spec.executed = executed.last().map(|m| m.id());
-    spec.check().map_err(|e| anyhow!("planning call: {e}"))?;
+    spec.check().map_err(OnlineError::Spec)?;
     let t0 = Instant::now();
     let report = planner
         .plan_call(&spec, &mut StdClock(t0))
-        .with_context(|| {
-            format!(
-                "planning before mode {} ({})",
-                executed.len() + 1,
-                planner.location()
-            )
+        .map_err(|source| OnlineError::Planning {
+            mode: executed.len() + 1,
+            location: planner.location(),
+            source,
         })?;
     let seconds = t0.elapsed().as_secs_f64();
     let modes: Vec<Mode> = report
@@ -426,7 +527,7 @@ pub fn run_online<H: Hand + ?Sized>(
     exec: &ExecSettings,
     settings: &OnlineSettings,
     progress: &mut dyn FnMut(&str),
-) -> anyhow::Result<EpisodeResult> {
+) -> Result<EpisodeResult, OnlineError> {
     let scene = hand.scene();
     let hand_name = hand.name();
     let task = scene.task();
@@ -434,19 +535,14 @@ pub fn run_online<H: Hand + ?Sized>(
     let limit = mode_limit(scene);
     if method == Method::DiffusionPolicy {
         if settings.sequence.is_some() {
-            bail!(
-                "method `diffusion-policy` has no contact modes; --modes is for dips-sampled and csvto-sampled"
-            );
+            return Err(OnlineError::PolicyWithModes);
         }
-        let mut models = models.context("method `diffusion-policy` needs its model")?;
+        let mut models = models.ok_or(OnlineError::PolicyNeedsModels)?;
         let dir = models.dir.clone();
         let Some(policy) = models.policy.as_mut() else {
-            bail!(
-                "no diffusion-policy model at {} (train it with `dips train --policy`)",
-                dir.join(crate::policy::POLICY_DIR)
-                    .join("denoiser.onnx")
-                    .display()
-            );
+            return Err(OnlineError::NoPolicyModel {
+                file: dir.join(POLICY_DIR).join("denoiser.onnx"),
+            });
         };
         let runs = settings.max_modes.map_or(limit, |m| m.min(limit));
         let mut result = crate::policy::run_policy_episode(
@@ -467,13 +563,13 @@ pub fn run_online<H: Hand + ?Sized>(
     let mut sampler_rng = KernelRng::seed_from_u64(seed ^ 0xd1ff_0510);
     let mut session = match (models, method.needs_models()) {
         (Some(m), _) => Some(PaperSession::new(m)),
-        (None, true) => bail!("method `{}` needs the diffusion models", method.name()),
+        (None, true) => return Err(OnlineError::NeedsModels { method }),
         (None, false) => None,
     };
     let prior = match session.as_mut().and_then(|s| s.models_mut().prior) {
         Some(p) => p,
         None => MarkovPrior::paper(task, SearchConfig::for_task(task).p_min)
-            .map_err(|e| anyhow!("{e}"))?,
+            .map_err(OnlineError::Prior)?,
     };
     // Scored on the true pose (a simulated tracker may be noisy); planned on the measured.
     let start = true_hand_state(hand);
@@ -484,10 +580,7 @@ pub fn run_online<H: Hand + ?Sized>(
     let mut planning_s = Vec::new();
     let mut step_s = Vec::new();
     if method.searches() && settings.sequence.is_some() {
-        bail!(
-            "method `{}` plans its own modes; a given sequence is for dips-sampled and csvto-sampled",
-            method.name()
-        );
+        return Err(OnlineError::SearchWithModes { method });
     }
     let mut queue: Vec<Mode> = if method.searches() {
         Vec::new()
@@ -509,7 +602,7 @@ pub fn run_online<H: Hand + ?Sized>(
             let planner: &mut dyn PlanService = match (remote.as_deref_mut(), session.as_mut()) {
                 (Some(r), _) => r,
                 (None, Some(s)) => s,
-                (None, None) => bail!("method `{}` needs the diffusion models", method.name()),
+                (None, None) => return Err(OnlineError::NeedsModels { method }),
             };
             let depth = settings.depth_rule(scene).depth(limit, executed.len());
             progress(&format!(

@@ -14,7 +14,6 @@
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
-use anyhow::{Context, bail};
 use dips_kernel::budget::Clock;
 use dips_kernel::diffusion::SamplerConfig;
 use dips_kernel::engine::DenoiserEngine;
@@ -24,7 +23,7 @@ use dips_kernel::prior::MarkovPrior;
 use dips_kernel::search::{PaperPlanner, ParticleDiagnostics, Planner, SearchReport, SearchStatus};
 use dips_kernel::session::{PlanSpec, SessionError, SessionLayout, plan_with_engines};
 use dips_kernel::task::CardGoals;
-use dips_onnx::{AnyEngine, EngineKind, Expectation, Role};
+use dips_onnx::{AnyEngine, EngineKind, Expectation, ModelError, Role};
 
 /// `std::time::Instant` as the kernel's clock (microseconds since `self.0`).
 #[derive(Debug, Clone, Copy)]
@@ -92,15 +91,6 @@ impl Clock for ProgressClock<'_> {
     }
 }
 
-/// Parse a sampler name: `ddpm` (the paper's ancestral DDPM over every training step, noise
-/// factor 0.5), `ddpm:STEPS` (the same posterior and noise factor over STEPS ≥ 1 strided
-/// steps) or `ddim:STEPS[:ETA]` (DDIM over STEPS ≥ 1 strided steps; η = 0, the default, is
-/// deterministic, η = 1 is ancestral).
-pub fn parse_sampler(spec: &str) -> anyhow::Result<SamplerConfig> {
-    spec.parse::<SamplerConfig>()
-        .map_err(|e| anyhow::anyhow!("--sampler {spec:?}: {e}"))
-}
-
 /// The threads a model call uses when no `--threads` is given: every core this process may
 /// use.
 pub fn default_threads() -> usize {
@@ -127,34 +117,27 @@ const REPO_MODELS: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../onnx/models")
 /// The models directory of `task` when none is given: `$DIPS_MODELS/<task>` when the variable
 /// is set, else `onnx/models/<task>` under the current directory, else the shipped models of the
 /// repository this binary was built from. The error lists what was tried.
-pub fn default_models_dir(task: Task) -> anyhow::Result<PathBuf> {
+pub fn default_models_dir(task: Task) -> Result<PathBuf, ModelsError> {
     let mut tried = Vec::new();
     if let Some(root) = std::env::var_os(MODELS_ENV) {
         let dir = PathBuf::from(root).join(task.name());
         if dir.is_dir() {
             return Ok(dir);
         }
-        bail!(
-            "${MODELS_ENV} is set but {} is not a directory (unset it to use the shipped models)",
-            dir.display()
-        );
+        return Err(ModelsError::EnvNotADirectory { dir });
     }
     for root in [PathBuf::from("onnx/models"), PathBuf::from(REPO_MODELS)] {
         let dir = root.join(task.name());
         if dir.join(model_file(Role::Denoiser)).is_file() {
             return Ok(dir);
         }
-        tried.push(dir.display().to_string());
+        tried.push(dir);
     }
-    bail!(
-        "no {} models found (tried {}); pass --models DIR or set ${MODELS_ENV}",
-        task.name(),
-        tried.join(", ")
-    )
+    Err(ModelsError::NotFound { task, tried })
 }
 
 /// `given`, or else [`default_models_dir`] of `task`: how every command picks its models.
-pub fn models_dir(given: Option<&Path>, task: Task) -> anyhow::Result<PathBuf> {
+pub fn models_dir(given: Option<&Path>, task: Task) -> Result<PathBuf, ModelsError> {
     match given {
         Some(d) => Ok(d.to_path_buf()),
         None => default_models_dir(task),
@@ -175,7 +158,7 @@ pub fn sample_trajectories(
     starts: &[f32],
     anchor: dips_kernel::adapters::StartAnchor,
     rng: &mut dips_kernel::rng::KernelRng,
-) -> anyhow::Result<Vec<f32>> {
+) -> Result<Vec<f32>, SampleError> {
     use dips_kernel::diffusion::{SampleRequest, SamplerScratch, ScratchLayout, sample};
     let dims = DenoiserEngine::dims(engine);
     let mut canonical = starts.to_vec();
@@ -186,8 +169,7 @@ pub fn sample_trajectories(
     let chunk = 48.min(engine.max_batch() / 2).max(1);
     let layout = ScratchLayout::new(dims, chunk);
     let mut buf = vec![0f32; layout.total()];
-    let mut scratch = SamplerScratch::split(&mut buf, &layout)
-        .map_err(|e| anyhow::anyhow!("sampler scratch: {e}"))?;
+    let mut scratch = SamplerScratch::split(&mut buf, &layout).map_err(SampleError::Scratch)?;
     let mut out = vec![0f32; n * dims.floats_per_trajectory()];
     sample(
         engine,
@@ -200,7 +182,7 @@ pub fn sample_trajectories(
         &mut scratch,
         &mut out,
     )
-    .map_err(|e| anyhow::anyhow!("sampling failed: {e:?}"))?;
+    .map_err(SampleError::Sampling)?;
     anchor.apply(
         &mut out,
         starts,
@@ -238,14 +220,14 @@ pub struct Models {
 
 /// The card goals the denoiser in `dir` was trained for (`dips.card_goals`), `None` when it
 /// does not say or `dir` holds no denoiser (a run of methods that need none).
-pub fn models_card_goals(dir: &Path) -> anyhow::Result<Option<CardGoals>> {
+pub fn models_card_goals(dir: &Path) -> Result<Option<CardGoals>, ModelsError> {
     let file = dir.join(model_file(Role::Denoiser));
     if !file.is_file() {
         return Ok(None);
     }
     dips_onnx::contract::read_proto(&file)
         .and_then(|p| dips_onnx::contract::card_goals(&p))
-        .with_context(|| format!("loading {}", file.display()))
+        .map_err(|source| ModelsError::Load { file, source })
 }
 
 /// Card goals asked for that are not those the models were trained for: a planner whose `J`
@@ -296,7 +278,7 @@ pub fn planner_sample_name(config: &SamplerConfig, task: Task) -> String {
 /// planner sampler among them: the shipped recipe, measured on the planner's samples in
 /// docs/particles.md). A Ψ trained for one planner sampler (`discriminator.planner_fakes`)
 /// refuses another.
-fn psi_mismatch(negatives: &[String], config: &SamplerConfig, task: Task) -> Option<String> {
+fn psi_mismatch(negatives: &[String], config: &SamplerConfig, task: Task) -> Option<PsiMismatch> {
     let name = planner_sample_name(config, task);
     let for_a_planner = negatives
         .iter()
@@ -305,32 +287,183 @@ fn psi_mismatch(negatives: &[String], config: &SamplerConfig, task: Task) -> Opt
         return None;
     }
     // The samplers among the negatives that the planner draws as they were drawn.
-    let usable: Vec<&str> = negatives
+    let usable: Vec<String> = negatives
         .iter()
         .filter_map(|n| {
             let base = n.strip_suffix("+anchor").unwrap_or(n);
-            (planner_sample_name(&base.parse().ok()?, task) == *n).then_some(base)
+            (planner_sample_name(&base.parse().ok()?, task) == *n).then(|| base.to_string())
         })
         .collect();
-    let fix = match config.method {
-        dips_kernel::diffusion::SamplingMethod::DdpmStrided { steps, .. } => {
-            format!("retrain Ψ with discriminator.planner_fakes = [{steps}] (docs/training.md)")
-        }
-        _ => "retrain Ψ with discriminator.planner_fakes for a ddpm:S sampler".to_string(),
-    };
-    Some(if usable.is_empty() {
-        format!(
-            "Ψ was trained against samples of {} and never saw the planner's {name}; {fix}",
-            negatives.join(", ")
-        )
-    } else {
-        format!(
-            "Ψ was trained against samples of {} and never saw the planner's {name}; plan with \
-             --sampler {}, or {fix}",
-            negatives.join(", "),
-            usable.join(" or --sampler ")
-        )
+    Some(PsiMismatch {
+        negatives: negatives.to_vec(),
+        planner: name,
+        usable,
+        planner_steps: match config.method {
+            dips_kernel::diffusion::SamplingMethod::DdpmStrided { steps, .. } => Some(steps),
+            _ => None,
+        },
     })
+}
+
+/// A Ψ trained against other samplers' samples than the planner's ([`Models::check_psi`]).
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct PsiMismatch {
+    /// The samplers of Ψ's negatives (`dips.psi_negatives`).
+    pub negatives: Vec<String>,
+    /// The planner's samples ([`planner_sample_name`]), not among them.
+    pub planner: String,
+    /// The samplers among the negatives that the planner draws as Ψ saw them (the
+    /// samplers that may plan with this Ψ); may be empty.
+    pub usable: Vec<String>,
+    /// The planner's steps when it draws a strided DDPM (`ddpm:S`), for which Ψ could be
+    /// retrained.
+    pub planner_steps: Option<u16>,
+}
+
+impl PsiMismatch {
+    /// The retraining that would make Ψ fit the planner's sampler.
+    pub fn retrain(&self) -> String {
+        match self.planner_steps {
+            Some(steps) => {
+                format!("retrain Ψ with discriminator.planner_fakes = [{steps}] (docs/training.md)")
+            }
+            None => "retrain Ψ with discriminator.planner_fakes for a ddpm:S sampler".to_string(),
+        }
+    }
+
+    /// What Ψ saw and the planner draws (the message's first half).
+    pub fn what(&self) -> String {
+        format!(
+            "Ψ was trained against samples of {} and never saw the planner's {}",
+            self.negatives.join(", "),
+            self.planner
+        )
+    }
+}
+
+impl std::fmt::Display for PsiMismatch {
+    /// What Ψ saw, what the planner draws, and the samplers that may plan with it instead.
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        if self.usable.is_empty() {
+            write!(f, "{}; {}", self.what(), self.retrain())
+        } else {
+            write!(
+                f,
+                "{}; plan with the sampler {}, or {}",
+                self.what(),
+                self.usable.join(" or "),
+                self.retrain()
+            )
+        }
+    }
+}
+
+/// Why models cannot be found, loaded, or used as asked. Each message names the directory or
+/// file and what is allowed.
+#[derive(Debug, thiserror::Error)]
+pub enum ModelsError {
+    /// `$DIPS_MODELS` is set but holds no directory for the task.
+    #[error(
+        "$DIPS_MODELS is set but {} is not a directory (unset it to use the shipped models)",
+        dir.display()
+    )]
+    EnvNotADirectory {
+        /// The task's directory under `$DIPS_MODELS`.
+        dir: PathBuf,
+    },
+    /// No models directory was given and none of the default places has the task's models.
+    #[error(
+        "no {task} models found (tried {}); give a models directory or set $DIPS_MODELS",
+        tried.iter().map(|d| d.display().to_string()).collect::<Vec<_>>().join(", ")
+    )]
+    NotFound {
+        /// The task.
+        task: Task,
+        /// The directories tried, in order.
+        tried: Vec<PathBuf>,
+    },
+    /// A model file the run needs is not there.
+    #[error("no {role:?} model at {}", file.display())]
+    Missing {
+        /// The model's role.
+        role: Role,
+        /// The file looked for.
+        file: PathBuf,
+    },
+    /// A model file cannot be read, or is not a model of the task's contract.
+    #[error("loading {}", file.display())]
+    Load {
+        /// The file.
+        file: PathBuf,
+        /// What is wrong with it.
+        #[source]
+        source: ModelError,
+    },
+    /// The fitted prior cannot be read.
+    #[error("loading {}", file.display())]
+    Prior {
+        /// The file.
+        file: PathBuf,
+        /// What is wrong with it.
+        #[source]
+        source: dips_dataset::DatasetError,
+    },
+    /// The Diffusion Policy baseline's model cannot be loaded.
+    #[error("the diffusion-policy baseline needs its model in {}", dir.display())]
+    Policy {
+        /// The policy's folder in the models directory ([`POLICY_DIR`]).
+        dir: PathBuf,
+        /// Why it cannot be loaded.
+        #[source]
+        source: Box<ModelsError>,
+    },
+    /// A strided sampler asks for more steps than the denoiser was trained with.
+    #[error(
+        "sampler {name}:{steps}: the denoiser in {} was trained with {trained} diffusion steps; \
+         use ddim:S or ddpm:S with 1 ≤ S ≤ {trained}, or ddpm",
+        dir.display()
+    )]
+    TooManySteps {
+        /// The sampler's kind (`ddim` or `ddpm`).
+        name: &'static str,
+        /// The steps asked for.
+        steps: u16,
+        /// The steps the denoiser was trained with (the most allowed).
+        trained: usize,
+        /// The models' directory.
+        dir: PathBuf,
+    },
+    /// Ψ was trained for another planner sampler than this one ([`Models::check_psi`]).
+    #[error("the discriminator in {}: {mismatch}", dir.display())]
+    Psi {
+        /// The models' directory.
+        dir: PathBuf,
+        /// What Ψ saw and what the planner draws.
+        mismatch: PsiMismatch,
+    },
+}
+
+/// Why diffusion sampling ([`sample_trajectories`]) failed.
+#[derive(Debug, thiserror::Error)]
+pub enum SampleError {
+    /// The sampler's work area cannot be laid out for the engine.
+    #[error("sampler scratch: {0}")]
+    Scratch(dips_kernel::diffusion::SamplerError),
+    /// The sampler or the engine failed.
+    #[error("sampling failed: {0:?}")]
+    Sampling(dips_kernel::diffusion::SampleError<ModelError>),
+}
+
+/// Why a planning call ([`PlanService::plan_call`]) failed.
+#[derive(Debug, thiserror::Error)]
+pub enum PlanCallError {
+    /// The in-process session refused the call or its engines failed.
+    #[error(transparent)]
+    Session(#[from] SessionError),
+    /// A service elsewhere (a kernel over the wire, `dips-link`) failed; its own error says
+    /// how.
+    #[error(transparent)]
+    Remote(Box<dyn std::error::Error + Send + Sync>),
 }
 
 impl Models {
@@ -345,13 +478,16 @@ impl Models {
     /// planner's (`config` with the task's start anchor, [`planner_sample_name`]) must be one
     /// of them; an error, not a silent drift. A Ψ trained the paper's way only (the shipped
     /// recipe) and models that do not name their negatives pass.
-    pub fn check_psi(&self, config: &SamplerConfig, task: Task) -> anyhow::Result<()> {
+    pub fn check_psi(&self, config: &SamplerConfig, task: Task) -> Result<(), ModelsError> {
         match self
             .psi_negatives
             .as_deref()
             .and_then(|n| psi_mismatch(n, config, task))
         {
-            Some(why) => bail!("the discriminator in {}: {why}", self.dir.display()),
+            Some(mismatch) => Err(ModelsError::Psi {
+                dir: self.dir.clone(),
+                mismatch,
+            }),
             None => Ok(()),
         }
     }
@@ -359,12 +495,12 @@ impl Models {
     /// Check that `config` can run on the denoiser (a strided sampler cannot take more steps
     /// than the model was trained with) and that Ψ was trained against its samples for
     /// `task` ([`Self::check_psi`]). The error names the models and what is allowed.
-    pub fn check_sampler(&self, config: &SamplerConfig, task: Task) -> anyhow::Result<()> {
+    pub fn check_sampler(&self, config: &SamplerConfig, task: Task) -> Result<(), ModelsError> {
         self.check_steps(config)?;
         self.check_psi(config, task)
     }
 
-    fn check_steps(&self, config: &SamplerConfig) -> anyhow::Result<()> {
+    fn check_steps(&self, config: &SamplerConfig) -> Result<(), ModelsError> {
         use dips_kernel::diffusion::SamplingMethod;
         let n = DenoiserEngine::dims(&self.denoiser).diffusion_steps;
         let (name, steps) = match config.method {
@@ -373,11 +509,12 @@ impl Models {
             SamplingMethod::Ddpm { .. } => return Ok(()),
         };
         if usize::from(steps) > n {
-            bail!(
-                "--sampler {name}:{steps}: the denoiser in {} was trained with {n} diffusion \
-                 steps; use ddim:S or ddpm:S with 1 ≤ S ≤ {n}, or ddpm",
-                self.dir.display()
-            );
+            return Err(ModelsError::TooManySteps {
+                name,
+                steps,
+                trained: n,
+                dir: self.dir.clone(),
+            });
         }
         Ok(())
     }
@@ -394,13 +531,16 @@ impl Models {
 
     /// Load `denoiser.onnx`, `discriminator.onnx` and, when present, `prior.json` and
     /// `policy/denoiser.onnx` from `dir` for `task` with `kind`.
-    pub fn load(kind: EngineKind, dir: &Path, task: Task) -> anyhow::Result<Self> {
+    pub fn load(kind: EngineKind, dir: &Path, task: Task) -> Result<Self, ModelsError> {
         let prior_path = dir.join(PRIOR_FILE);
         let prior = if prior_path.is_file() {
             Some(
                 dips_dataset::PriorFile::load(&prior_path, task)
                     .map(|(_, p)| p)
-                    .with_context(|| format!("loading {}", prior_path.display()))?,
+                    .map_err(|source| ModelsError::Prior {
+                        file: prior_path,
+                        source,
+                    })?,
             )
         } else {
             None
@@ -414,15 +554,15 @@ impl Models {
                 let file = dir.join(model_file(Role::Discriminator));
                 dips_onnx::contract::read_proto(&file)
                     .and_then(|p| dips_onnx::contract::psi_negatives(&p))
-                    .with_context(|| format!("loading {}", file.display()))?
+                    .map_err(|source| ModelsError::Load { file, source })?
             },
             dir: dir.to_path_buf(),
             policy: if dir
-                .join(crate::policy::POLICY_DIR)
+                .join(POLICY_DIR)
                 .join(model_file(Role::Denoiser))
                 .is_file()
             {
-                Some(crate::policy::load_policy(kind, dir, task)?)
+                Some(load_policy(kind, dir, task)?)
             } else {
                 None
             },
@@ -430,18 +570,31 @@ impl Models {
     }
 }
 
-pub(crate) fn load_model(
+fn load_model(
     kind: EngineKind,
     dir: &Path,
     role: Role,
     task: Task,
-) -> anyhow::Result<AnyEngine> {
+) -> Result<AnyEngine, ModelsError> {
     let file = dir.join(model_file(role));
     if !file.is_file() {
-        bail!("no {role:?} model at {}", file.display());
+        return Err(ModelsError::Missing { role, file });
     }
     AnyEngine::load(kind, &file, &Expectation::new(role, task.name()))
-        .with_context(|| format!("loading {}", file.display()))
+        .map_err(|source| ModelsError::Load { file, source })
+}
+
+/// The Diffusion Policy baseline's folder inside a models directory (`crate::policy`).
+pub const POLICY_DIR: &str = "policy";
+
+/// Load the Diffusion Policy baseline's denoiser from `models/policy/denoiser.onnx`, checked
+/// against `task`'s contract (`crate::policy`).
+pub fn load_policy(kind: EngineKind, models: &Path, task: Task) -> Result<AnyEngine, ModelsError> {
+    let dir = models.join(POLICY_DIR);
+    load_model(kind, &dir, Role::Denoiser, task).map_err(|source| ModelsError::Policy {
+        dir,
+        source: Box::new(source),
+    })
 }
 
 /// What a planning call answers, wherever it ran: the fields of the kernel's
@@ -494,7 +647,11 @@ impl From<&SearchReport> for PlanOutcome {
 pub trait PlanService {
     /// Plan `spec`; `clock` is read before every expansion (in process) or for progress
     /// (over the wire, where the kernel keeps its own time).
-    fn plan_call(&mut self, spec: &PlanSpec, clock: &mut dyn Clock) -> anyhow::Result<PlanOutcome>;
+    fn plan_call(
+        &mut self,
+        spec: &PlanSpec,
+        clock: &mut dyn Clock,
+    ) -> Result<PlanOutcome, PlanCallError>;
 
     /// Where the plans are made, for messages and result files (`in-process`,
     /// `firmware-sim (spawned)`, `tcp://HOST:PORT`).
@@ -510,7 +667,11 @@ pub trait PlanService {
 impl<const K: usize, const N: usize, const O: usize, const S: usize> PlanService
     for Session<K, N, O, S>
 {
-    fn plan_call(&mut self, spec: &PlanSpec, clock: &mut dyn Clock) -> anyhow::Result<PlanOutcome> {
+    fn plan_call(
+        &mut self,
+        spec: &PlanSpec,
+        clock: &mut dyn Clock,
+    ) -> Result<PlanOutcome, PlanCallError> {
         let report = self.plan(spec, &mut &mut *clock)?;
         self.last_diagnostics = Some(report.particle_diagnostics);
         Ok(PlanOutcome::from(&report))
@@ -612,13 +773,17 @@ mod psi_tests {
         assert_eq!(psi_mismatch(&trained, &ddpm16, Task::Screwdriver), None);
         // Trained for ddpm:16 with the anchor: another planner sampler is refused.
         let ddpm32: SamplerConfig = "ddpm:32".parse().unwrap();
-        let e = psi_mismatch(&trained, &ddpm32, Task::Screwdriver).unwrap();
+        let e = psi_mismatch(&trained, &ddpm32, Task::Screwdriver)
+            .unwrap()
+            .to_string();
         assert!(e.contains("never saw the planner's ddpm:32+anchor"), "{e}");
         assert!(e.contains("planner_fakes = [32]"), "{e}");
         // The card does not anchor: none of the screwdriver-trained Ψ's planner samplers
         // applies, but the paper's ddpm and ddim:8 are drawn as Ψ saw them.
-        let e = psi_mismatch(&trained, &ddpm16, Task::Card).unwrap();
-        assert!(e.contains("--sampler ddpm or --sampler ddim:8"), "{e}");
+        let m = psi_mismatch(&trained, &ddpm16, Task::Card).unwrap();
+        assert_eq!(m.usable, ["ddpm", "ddim:8"]);
+        let e = m.to_string();
+        assert!(e.contains("plan with the sampler ddpm or ddim:8"), "{e}");
         // The paper's negatives alone (the shipped recipe) pass with any planner sampler.
         let paper = names(&["ddpm", "ddim:8"]);
         assert_eq!(psi_mismatch(&paper, &ddpm16, Task::Screwdriver), None);

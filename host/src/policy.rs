@@ -11,44 +11,56 @@
 //! actions so the same tables and pictures read it. The policy plans no contact forces and no
 //! clearance, so `tip_sdf` and `planned_state` are empty and `solve_s` is the sampling time.
 
-use std::path::Path;
 use std::time::Instant;
 
-use anyhow::{Context, bail};
 use dips_kernel::diffusion::SamplerConfig;
 use dips_kernel::engine::DenoiserEngine;
 use dips_kernel::rng::KernelRng;
-use dips_onnx::{AnyEngine, EngineKind};
+use dips_onnx::AnyEngine;
 
 use crate::execute::episode::{EpisodeResult, SCREWDRIVER_SUCCESS_YAW};
 use crate::execute::mode_run::command_deltas;
 use crate::execute::{ExecSettings, ModeRun, StepLog, hand_state, pose_valid, true_hand_state};
-use crate::hand::Hand;
-use crate::planning::sample_trajectories;
+use crate::hand::{Hand, HandError};
+use crate::planning::{SampleError, sample_trajectories};
 use crate::problems::contract::contract_state;
 use crate::scenes::SceneKind;
-
-/// The policy's folder inside a models directory.
-pub const POLICY_DIR: &str = "policy";
 
 /// The name of the policy's runs in `result.json`'s `modes`.
 pub const POLICY_RUN: &str = "policy";
 
-/// Load the policy's denoiser from `models/policy/denoiser.onnx`, checked against `task`'s
-/// contract.
-pub fn load_policy(
-    kind: EngineKind,
-    models: &Path,
-    task: dips_kernel::mode::Task,
-) -> anyhow::Result<AnyEngine> {
-    let dir = models.join(POLICY_DIR);
-    crate::planning::load_model(kind, &dir, dips_onnx::Role::Denoiser, task).with_context(|| {
-        format!(
-            "the diffusion-policy baseline needs its model in {} (train it with \
-             `dips train --policy`)",
-            dir.display()
-        )
-    })
+/// Why a policy episode stopped.
+#[derive(Debug, thiserror::Error)]
+pub enum PolicyError {
+    /// The model's rows are too narrow for the task's hand.
+    #[error(
+        "the policy model has {state} state and {action} action columns; the {task} task needs \
+         at least {needed}"
+    )]
+    Columns {
+        /// The model's state columns.
+        state: usize,
+        /// The model's action columns.
+        action: usize,
+        /// The task.
+        task: SceneKind,
+        /// The columns of both the task needs (4 joints per finger).
+        needed: usize,
+    },
+    /// Sampling the policy failed.
+    #[error("diffusion policy sample")]
+    Sample(#[source] SampleError),
+    /// The policy drew an action that is not a number.
+    #[error("the policy sampled a non-finite action at run {run} step {step}")]
+    NonFinite {
+        /// The run (0-based).
+        run: usize,
+        /// The step in the run (0-based).
+        step: usize,
+    },
+    /// The hand did not take the command.
+    #[error(transparent)]
+    Hand(#[from] HandError),
 }
 
 /// The object goal drawn for a policy run: the task's success line (screwdriver yaw −π/3
@@ -71,17 +83,17 @@ pub fn run_policy_episode<H: Hand + ?Sized>(
     sampler: &SamplerConfig,
     runs: usize,
     progress: &mut dyn FnMut(&str),
-) -> anyhow::Result<EpisodeResult> {
+) -> Result<EpisodeResult, PolicyError> {
     let scene = hand.scene();
     let dims = DenoiserEngine::dims(policy);
     let nq = 4 * scene.task_fingers().len();
     if dims.state_dim < nq || dims.action_dim < nq {
-        bail!(
-            "the policy model has {} state and {} action columns; the {} task needs at least {nq}",
-            dims.state_dim,
-            dims.action_dim,
-            scene.name()
-        );
+        return Err(PolicyError::Columns {
+            state: dims.state_dim,
+            action: dims.action_dim,
+            task: scene,
+            needed: nq,
+        });
     }
     let anchor = dips_kernel::session::start_anchor(scene.task());
     let context = vec![0f32; dims.fingers];
@@ -100,14 +112,14 @@ pub fn run_policy_episode<H: Hand + ?Sized>(
             let s0: Vec<f32> = contract_state(&state).iter().map(|&v| v as f32).collect();
             let t0 = Instant::now();
             let out = sample_trajectories(policy, sampler, &context, &s0, anchor, &mut rng)
-                .context("diffusion policy sample")?;
+                .map_err(PolicyError::Sample)?;
             let solve_s = t0.elapsed().as_secs_f64();
             let dq: Vec<f64> = out[dims.state_dim..dims.state_dim + nq]
                 .iter()
                 .map(|&v| f64::from(v))
                 .collect();
             if dq.iter().any(|v| !v.is_finite()) {
-                bail!("the policy sampled a non-finite action at run {r} step {k}");
+                return Err(PolicyError::NonFinite { run: r, step: k });
             }
             command_deltas(hand, &dq)?;
             let after = hand_state(hand);

@@ -42,7 +42,7 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{Context, bail};
 use dips_cli::output::line;
-use dips_host::planning::{Models, models_dir, parse_sampler, sample_trajectories};
+use dips_host::planning::{Models, models_dir, sample_trajectories};
 use dips_host::problems::contract::contract_state;
 use dips_kernel::adapters::StartAnchor;
 use dips_kernel::diffusion::SamplerConfig;
@@ -151,7 +151,7 @@ fn probe() -> anyhow::Result<()> {
             _ => files.push(PathBuf::from(a)),
         }
     }
-    let mut sampler = parse_sampler(&sampler_arg)?;
+    let mut sampler = sampler_arg.parse::<SamplerConfig>()?;
     if let Some(w) = guidance {
         sampler.guidance_weight = w;
     }

@@ -18,9 +18,10 @@ use std::collections::BTreeMap;
 use std::path::PathBuf;
 
 use anyhow::{Context, bail};
-use dips_host::planning::{Models, PaperSession, PlanService, models_dir, parse_sampler};
+use dips_host::planning::{Models, PaperSession, PlanService, models_dir};
 use dips_host::problems::contract::contract_state;
 use dips_kernel::budget::NoClock;
+use dips_kernel::diffusion::SamplerConfig;
 use dips_kernel::mode::Task;
 use dips_kernel::prior::MarkovPrior;
 use dips_kernel::search::{SearchConfig, SearchVariant};
@@ -98,7 +99,7 @@ fn probe() -> anyhow::Result<()> {
         if !sessions.contains_key(&task_name) {
             let dir = models_dir(models_arg.as_deref(), task)?;
             let models = Models::load(dips_onnx::EngineKind::Kernel, &dir, task)?;
-            models.check_sampler(&parse_sampler("ddpm:16")?, task)?;
+            models.check_sampler(&"ddpm:16".parse::<SamplerConfig>()?, task)?;
             let prior = match models.prior {
                 Some(p) => p,
                 None => MarkovPrior::paper(task, SearchConfig::for_task(task).p_min)
@@ -132,7 +133,7 @@ fn probe() -> anyhow::Result<()> {
                         *prior,
                     )
                     .map_err(|e| anyhow::anyhow!("{e}"))?;
-                    spec.sampler = parse_sampler("ddpm:16")?;
+                    spec.sampler = "ddpm:16".parse::<SamplerConfig>()?;
                     spec.executed = (i > 0)
                         .then(|| executed.get(i - 1))
                         .flatten()

@@ -16,7 +16,7 @@ use std::path::PathBuf;
 
 use anyhow::{Context, bail};
 use dips_dataset::{demo_files, read_demo};
-use dips_host::planning::{Models, models_dir, parse_sampler, sample_trajectories};
+use dips_host::planning::{Models, models_dir, sample_trajectories};
 use dips_kernel::adapters::StartAnchor;
 use dips_kernel::diffusion::normalize::normalize_in_place;
 use dips_kernel::diffusion::{SamplerConfig, SamplingMethod};
@@ -110,7 +110,7 @@ fn run() -> anyhow::Result<()> {
     let samplers: [(&str, SamplerConfig, StartAnchor); 3] = [
         (
             "planner: ddpm:16 + start anchor",
-            parse_sampler("ddpm:16")?,
+            "ddpm:16".parse::<SamplerConfig>()?,
             start_anchor(task),
         ),
         (

@@ -219,8 +219,8 @@ pub fn run(args: EvalArgs, hands: &dyn Hands) -> anyhow::Result<()> {
             quiet: args.quiet,
         };
         let s = summarize(&out)?;
-        for line in dips_eval::summary::shortfall(&s, args.trials) {
-            crate::output::note(&line);
+        for missing in dips_eval::summary::shortfall(&s, args.trials) {
+            crate::output::note(&crate::words::shortfall(&missing));
         }
         write_report(&report_args, &s)?;
         crate::output::line(dips_eval::summary::markdown(&s).trim_end_matches('\n'))?;

@@ -22,6 +22,7 @@ pub mod render;
 pub mod search_args;
 pub mod sim;
 pub mod train;
+pub mod words;
 
 /// DIPS: diffusion-informed probabilistic contact search for multi-finger manipulation.
 #[derive(Debug, Parser)]

@@ -32,14 +32,15 @@ macro_rules! note {
     };
 }
 
-/// `e` and its causes joined by `: ` as `{e:#}` writes them, without a cause that the message
-/// before it already ends with (errors such as `{path}: {source}` that also name their source
-/// would otherwise print it twice: "No such file or directory (os error 2): No such file or
-/// directory (os error 2)").
+/// `e` and its causes joined by `: ` as `{e:#}` writes them, each in the command line's words
+/// ([`crate::words::of`]: flags where the libraries name settings), without a cause that the
+/// message before it already ends with (errors such as `{path}: {source}` that also name their
+/// source would otherwise print it twice: "No such file or directory (os error 2): No such file
+/// or directory (os error 2)").
 pub fn causes(e: &anyhow::Error) -> String {
     let mut text = String::new();
     for cause in e.chain() {
-        let c = cause.to_string();
+        let c = crate::words::of(cause).unwrap_or_else(|| cause.to_string());
         if text.is_empty() {
             text = c;
         } else if !text.ends_with(&c) {

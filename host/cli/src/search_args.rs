@@ -275,7 +275,7 @@ impl SearchArgs {
 
     /// `--time-budget-s` as checked seconds ([`dips_host::online::check_time_budget_s`]).
     pub fn time_budget_s(&self) -> anyhow::Result<f64> {
-        dips_host::online::check_time_budget_s(self.time_budget_s)
+        Ok(dips_host::online::check_time_budget_s(self.time_budget_s)?)
     }
 
     /// `--time-budget-s` checked, in the kernel's milliseconds

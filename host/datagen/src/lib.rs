@@ -24,4 +24,4 @@ pub mod settings_file;
 pub use manifest::{Manifest, index};
 pub use merge::{MergeReport, merge};
 pub use record::{DemoOutcome, record_demo};
-pub use run::{DatagenError, DatagenReport, DatagenSettings, generate};
+pub use run::{DatagenError, DatagenReport, DatagenSettings, Remedy, generate};

@@ -8,7 +8,7 @@ use dips_batch::{ShardRecord, read_records, shards_without_record};
 use dips_host::scenes::SceneKind;
 
 use crate::manifest::{Manifest, index};
-use crate::run::{DatagenError, demo_path};
+use crate::run::{DatagenError, Remedy, demo_path};
 use crate::settings_file::{DATAGEN_FILE, DatagenFile, read_datagen_file, write_datagen_file};
 
 /// What a merge did.
@@ -65,25 +65,17 @@ pub fn merge(
     let (mut copied, mut already_there) = (0, 0);
     for src in sources {
         if !src.is_dir() {
-            return Err(DatagenError::Settings(format!(
-                "{} is not a directory (give the shards' dataset directories)",
-                src.display()
-            )));
+            return Err(DatagenError::NotADirectory { dir: src.clone() });
         }
-        let theirs = read_datagen_file(src)?.ok_or_else(|| {
-            DatagenError::Settings(format!(
-                "{} has no {DATAGEN_FILE}: not a dips datagen output (or made before it was \
-                 recorded; copy its demos/ by hand and run `dips datagen index`)",
-                src.display()
-            ))
-        })?;
+        let theirs = read_datagen_file(src)?
+            .ok_or_else(|| DatagenError::NoSettingsFile { dir: src.clone() })?;
         if theirs.task != settings.task {
             return Err(DatagenError::OtherSettings {
                 path: src.join(DATAGEN_FILE),
-                field: "--task".into(),
+                field: "task".into(),
                 theirs: theirs.task,
                 ours: settings.task.clone(),
-                hint: "merge datasets of one task",
+                remedy: Remedy::OneTask,
             });
         }
         for batch in theirs.batches {

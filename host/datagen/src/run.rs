@@ -7,6 +7,7 @@ use std::sync::atomic::{AtomicUsize, Ordering};
 use std::time::Instant;
 
 use dips_batch::{Progress, ProgressMode, Shard};
+use dips_csvto::CsvtoError;
 use dips_dataset::{DatasetError, read_demo, write_demo};
 use dips_host::execute::{ExecError, ExecSettings, SequenceSource};
 use dips_host::scenes::SceneKind;
@@ -64,31 +65,109 @@ impl DatagenSettings {
 
     /// Check the settings.
     pub fn validate(&self) -> Result<(), DatagenError> {
-        let bad = |what: String| Err(DatagenError::Settings(what));
         if self.demos == 0 {
-            return bad("--demos must be at least 1".into());
+            return Err(DatagenError::NoDemos);
         }
         if self.jobs == 0 {
-            return bad("--jobs must be at least 1".into());
+            return Err(DatagenError::NoJobs);
         }
         if self.first_seed.checked_add(self.demos as u64).is_none() {
-            return bad(format!(
-                "--first-seed {} + --demos {} overflows the seed range",
-                self.first_seed, self.demos
-            ));
+            return Err(DatagenError::SeedOverflow {
+                first_seed: self.first_seed,
+                demos: self.demos,
+            });
         }
-        self.exec
-            .validate()
-            .map_err(|e| DatagenError::Settings(e.to_string()))
+        self.exec.validate().map_err(DatagenError::Exec)
     }
 }
 
-/// Why data generation stopped.
+/// What to do about a directory of other settings ([`DatagenError::OtherSettings`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Remedy {
+    /// Make demos of other seeds, or into another directory.
+    OtherSeedsOrDirectory,
+    /// Make the demos into another directory.
+    OtherDirectory,
+    /// Merge datasets of one task only.
+    OneTask,
+}
+
+impl std::fmt::Display for Remedy {
+    /// The remedy as a clause.
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            Self::OtherSeedsOrDirectory => "give other seeds or another output directory",
+            Self::OtherDirectory => "give another output directory",
+            Self::OneTask => "merge datasets of one task",
+        })
+    }
+}
+
+/// Why data generation stopped. Each message names the setting or file, its value and what
+/// is allowed.
 #[derive(Debug, thiserror::Error)]
 pub enum DatagenError {
-    /// Settings out of range.
+    /// No demos asked for.
+    #[error("invalid datagen settings: demos: 0, must be at least 1")]
+    NoDemos,
+    /// No demos at once.
+    #[error("invalid datagen settings: jobs: 0, must be at least 1")]
+    NoJobs,
+    /// The seeds run past `u64::MAX`.
+    #[error(
+        "invalid datagen settings: first seed {first_seed} + {demos} demos overflows the seed \
+         range"
+    )]
+    SeedOverflow {
+        /// The first seed.
+        first_seed: u64,
+        /// The demos.
+        demos: usize,
+    },
+    /// CSVTO's or the execution's settings are out of range.
     #[error("invalid datagen settings: {0}")]
-    Settings(String),
+    Exec(CsvtoError),
+    /// The worker threads cannot be started.
+    #[error("thread pool: {0}")]
+    ThreadPool(rayon::ThreadPoolBuildError),
+    /// A demo already there was made from other contact sequences.
+    #[error(
+        "{} was made with sequences {made}, this run asks for {asked}; {}",
+        path.display(),
+        Remedy::OtherSeedsOrDirectory
+    )]
+    OtherSequences {
+        /// The demo file.
+        path: PathBuf,
+        /// The sequences it was made with.
+        made: String,
+        /// This run's.
+        asked: &'static str,
+    },
+    /// A merge source is not a directory.
+    #[error("{} is not a directory (give the shards' dataset directories)", dir.display())]
+    NotADirectory {
+        /// The source.
+        dir: PathBuf,
+    },
+    /// A merge source has no `datagen.json`.
+    #[error(
+        "{} has no datagen.json: not a dips datagen output (or made before it was recorded; \
+         copy its demos/ by hand and index the dataset)",
+        dir.display()
+    )]
+    NoSettingsFile {
+        /// The source.
+        dir: PathBuf,
+    },
+    /// `datagen.json` is not one.
+    #[error("{} is not a datagen settings file ({error}); delete it to start over", path.display())]
+    SettingsFile {
+        /// The file.
+        path: PathBuf,
+        /// What serde found.
+        error: serde_json::Error,
+    },
     /// A file or directory could not be written or read.
     #[error("{path}: {source}")]
     Io {
@@ -104,18 +183,19 @@ pub enum DatagenError {
     #[error(transparent)]
     Batch(#[from] dips_batch::BatchError),
     /// The directory holds demos of other settings.
-    #[error("{path} was made with {field} {theirs}, this run asks for {ours}; {hint}")]
+    #[error("{path} was made with {field} {theirs}, this run asks for {ours}; {remedy}")]
     OtherSettings {
         /// The settings file.
         path: PathBuf,
-        /// The first setting that differs.
+        /// The first setting that differs, as its field in `datagen.json` (`task`,
+        /// `sequences`, `seeds`, `exec.horizon`, ...).
         field: String,
         /// Its value in the file.
         theirs: String,
         /// This run's value.
         ours: String,
         /// What to do.
-        hint: &'static str,
+        remedy: Remedy,
     },
     /// A merge found demos missing.
     #[error("{dir}: {missing} of {expected} demos are missing ({detail}); rerun those shards")]
@@ -184,12 +264,11 @@ pub fn generate(settings: &DatagenSettings, dir: &Path) -> Result<DatagenReport,
             Some(Ok(demo)) => {
                 let made = demo.sequence_source();
                 if made != settings.sequences.name() {
-                    return Err(DatagenError::Settings(format!(
-                        "{} was made with --sequences {made}, this run asks for {}; give \
-                         other seeds (--first-seed) or another --out",
-                        path.display(),
-                        settings.sequences.name()
-                    )));
+                    return Err(DatagenError::OtherSequences {
+                        path,
+                        made: made.to_string(),
+                        asked: settings.sequences.name(),
+                    });
                 }
             }
             _ => pending.push(seed),
@@ -220,7 +299,7 @@ pub fn generate(settings: &DatagenSettings, dir: &Path) -> Result<DatagenReport,
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(settings.jobs)
         .build()
-        .map_err(|e| DatagenError::Settings(format!("thread pool: {e}")))?;
+        .map_err(DatagenError::ThreadPool)?;
     pool.install(|| {
         pending.par_iter().with_max_len(1).for_each(|&seed| {
             if failure.lock().map(|f| f.is_some()).unwrap_or(true) {

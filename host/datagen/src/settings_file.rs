@@ -7,7 +7,7 @@ use std::path::Path;
 use dips_batch::first_difference;
 use serde::{Deserialize, Serialize};
 
-use crate::run::{DatagenError, DatagenSettings};
+use crate::run::{DatagenError, DatagenSettings, Remedy};
 
 /// The settings file's name.
 pub const DATAGEN_FILE: &str = "datagen.json";
@@ -65,13 +65,13 @@ impl DatagenFile {
     /// Add `batch`: the same range again must have the same settings, and a new range must not
     /// overlap one of other settings. `path` names the file in errors.
     pub fn add(&mut self, batch: Batch, path: &Path) -> Result<(), DatagenError> {
-        let other = |field: String, theirs: String, ours: String, hint| {
+        let other = |field: String, theirs: String, ours: String, remedy| {
             Err(DatagenError::OtherSettings {
                 path: path.to_path_buf(),
                 field,
                 theirs,
                 ours,
-                hint,
+                remedy,
             })
         };
         for old in &self.batches {
@@ -81,7 +81,7 @@ impl DatagenFile {
             if !old.overlaps(&batch) {
                 continue;
             }
-            let hint = "give other seeds (--first-seed) or another --out";
+            let hint = Remedy::OtherSeedsOrDirectory;
             if (old.first_seed, old.demos) != (batch.first_seed, batch.demos) {
                 return other(
                     "seeds".into(),
@@ -92,7 +92,7 @@ impl DatagenFile {
             }
             if old.sequences != batch.sequences {
                 return other(
-                    "--sequences".into(),
+                    "sequences".into(),
                     old.sequences.clone(),
                     batch.sequences.clone(),
                     hint,
@@ -116,12 +116,9 @@ pub fn read_datagen_file(dir: &Path) -> Result<Option<DatagenFile>, DatagenError
         path: path.clone(),
         source,
     })?;
-    serde_json::from_str(&text).map(Some).map_err(|e| {
-        DatagenError::Settings(format!(
-            "{} is not a datagen settings file ({e}); delete it to start over",
-            path.display()
-        ))
-    })
+    serde_json::from_str(&text)
+        .map(Some)
+        .map_err(|error| DatagenError::SettingsFile { path, error })
 }
 
 /// Write `file` to `dir/datagen.json` atomically.
@@ -150,10 +147,10 @@ pub fn claim_dir(dir: &Path, settings: &DatagenSettings) -> Result<DatagenFile, 
     if file.task != task {
         return Err(DatagenError::OtherSettings {
             path,
-            field: "--task".into(),
+            field: "task".into(),
             theirs: file.task,
             ours: task,
-            hint: "give another --out",
+            remedy: Remedy::OtherDirectory,
         });
     }
     let before = file.batches.len();

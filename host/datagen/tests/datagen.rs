@@ -6,7 +6,7 @@ use std::path::Path;
 
 use dips_batch::{ProgressMode, Shard};
 use dips_datagen::run::demo_path;
-use dips_datagen::{DatagenSettings, generate, merge, record_demo};
+use dips_datagen::{DatagenError, DatagenSettings, generate, merge, record_demo};
 use dips_dataset::{DemoRecord, read_demo};
 use dips_host::execute::{
     ExecSettings, SequenceSource, prior_sequence_for_seed, run_episode, sequence_for_seed,
@@ -202,9 +202,18 @@ fn markov_demos_are_their_chains_and_never_mixed_up_on_resume() {
         Some("markov")
     );
     settings.sequences = SequenceSource::Pattern;
-    let err = generate(&settings, &dir).unwrap_err().to_string();
+    let err = generate(&settings, &dir).unwrap_err();
     assert!(
-        err.contains("made with --sequences markov") && err.contains("--first-seed"),
+        matches!(
+            &err,
+            DatagenError::OtherSettings { field, theirs, ours, .. }
+                if field == "sequences" && theirs == "markov" && ours == "pattern"
+        ),
+        "{err}"
+    );
+    let err = err.to_string();
+    assert!(
+        err.contains("made with sequences markov") && err.contains("give other seeds"),
         "{err}"
     );
     std::fs::remove_dir_all(&dir).ok();

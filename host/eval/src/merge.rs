@@ -6,15 +6,168 @@
 
 use std::path::{Path, PathBuf};
 
-use anyhow::{Context, bail};
 use dips_batch::record::{SHARDS_DIR, record_path};
-use dips_batch::{Shard, ShardRecord, first_difference, read_records, shards_without_record};
+use dips_batch::{
+    BatchError, Shard, ShardRecord, first_difference, read_records, shards_without_record,
+};
 use dips_fs::write_atomic;
 use serde::Serialize;
 
-use crate::protocol::{Registration, read_registration, write_registration};
+use crate::protocol::{ProtocolError, Registration, read_registration, write_registration};
 use crate::run::{WALL_FILE, finished};
-use crate::settings::{EVAL_FILE, EvalFile, episode_dir, read_eval_file};
+use crate::settings::{EVAL_FILE, EvalFile, EvalFileError, episode_dir, read_eval_file};
+
+/// Why shards cannot be merged. Each message names the directory and what differs or lacks.
+#[derive(Debug, thiserror::Error)]
+pub enum MergeError {
+    /// A source is not a directory.
+    #[error("{} is not a directory (give the shards' evaluation directories)", dir.display())]
+    NotADirectory {
+        /// The source.
+        dir: PathBuf,
+    },
+    /// A source holds no evaluation.
+    #[error("{} has no {EVAL_FILE}: not a dips eval output directory", dir.display())]
+    NoEvalFile {
+        /// The source.
+        dir: PathBuf,
+    },
+    /// Nothing to merge.
+    #[error("{} holds no {EVAL_FILE} and no source was given: nothing to merge", out.display())]
+    Nothing {
+        /// The output directory.
+        out: PathBuf,
+    },
+    /// A source ran other settings.
+    #[error(
+        "{} was run with other settings: {field} is {there} there and {here} in the evaluation \
+         being merged; merge only shards of one evaluation",
+        file.display()
+    )]
+    OtherSettings {
+        /// The source's `eval.json`.
+        file: PathBuf,
+        /// The first setting that differs.
+        field: String,
+        /// Its value in the source, as JSON.
+        there: String,
+        /// Its value in the evaluation being merged, as JSON.
+        here: String,
+    },
+    /// A source starts at another seed.
+    #[error(
+        "{} starts at first seed {there}, the evaluation being merged at {here}",
+        file.display()
+    )]
+    OtherFirstSeed {
+        /// The source's `eval.json`.
+        file: PathBuf,
+        /// Its first seed.
+        there: u64,
+        /// The evaluation's.
+        here: u64,
+    },
+    /// A source is of another registration.
+    #[error(
+        "{} was {theirs}, {} {ours}; merge only shards of one registration",
+        dir.display(),
+        from.display()
+    )]
+    OtherRegistration {
+        /// The source.
+        dir: PathBuf,
+        /// Its registration, described.
+        theirs: String,
+        /// The directory whose registration the others have.
+        from: PathBuf,
+        /// That registration, described.
+        ours: String,
+    },
+    /// Episodes of the evaluation are in no source.
+    #[error(
+        "{}: {} of {total} episodes are missing: {}{}{}; rerun those shards (they resume), or \
+         merge allowing missing episodes to summarise what is there",
+        out.display(),
+        missing.len(),
+        missing.iter().take(12).map(String::as_str).collect::<Vec<_>>().join(", "),
+        if missing.len() > 12 { ", …" } else { "" },
+        if unfinished.is_empty() {
+            String::new()
+        } else {
+            format!("; shards without a finished record: {}", unfinished.join(", "))
+        }
+    )]
+    Missing {
+        /// The output directory.
+        out: PathBuf,
+        /// The missing episodes (`method seed N (shard I/N)`).
+        missing: Vec<String>,
+        /// The episodes of the evaluation.
+        total: usize,
+        /// The shards without a finished record.
+        unfinished: Vec<String>,
+    },
+    /// An `eval.json` cannot be read.
+    #[error(transparent)]
+    EvalFile(#[from] EvalFileError),
+    /// A `registration.json` cannot be read or written.
+    #[error(transparent)]
+    Protocol(#[from] ProtocolError),
+    /// A shard record cannot be read.
+    #[error(transparent)]
+    Batch(#[from] BatchError),
+    /// A file cannot be read.
+    #[error("reading {}", path.display())]
+    Read {
+        /// The file or directory.
+        path: PathBuf,
+        /// Why.
+        #[source]
+        source: std::io::Error,
+    },
+    /// A directory cannot be made.
+    #[error("creating {}", dir.display())]
+    Create {
+        /// The directory.
+        dir: PathBuf,
+        /// Why.
+        #[source]
+        source: std::io::Error,
+    },
+    /// A file cannot be written.
+    #[error("writing {}", path.display())]
+    Write {
+        /// The file.
+        path: PathBuf,
+        /// Why.
+        #[source]
+        source: std::io::Error,
+    },
+    /// A file cannot be written as JSON.
+    #[error(transparent)]
+    Json(#[from] serde_json::Error),
+}
+
+fn create(dir: &Path) -> Result<(), MergeError> {
+    std::fs::create_dir_all(dir).map_err(|source| MergeError::Create {
+        dir: dir.to_path_buf(),
+        source,
+    })
+}
+
+fn write(path: &Path, bytes: &[u8]) -> Result<(), MergeError> {
+    write_atomic(path, bytes).map_err(|source| MergeError::Write {
+        path: path.to_path_buf(),
+        source,
+    })
+}
+
+fn read_error(path: &Path) -> impl FnOnce(std::io::Error) -> MergeError + '_ {
+    move |source| MergeError::Read {
+        path: path.to_path_buf(),
+        source,
+    }
+}
 
 /// What a merge did.
 #[derive(Debug, Clone, Serialize)]
@@ -31,26 +184,26 @@ pub struct MergeReport {
 
 /// Check that `theirs` (from `path`) describes the same evaluation as `ours`, and widen `ours`
 /// to its methods and trials.
-fn agree(ours: &mut EvalFile, theirs: &EvalFile, path: &Path) -> anyhow::Result<()> {
+fn agree(ours: &mut EvalFile, theirs: &EvalFile, path: &Path) -> Result<(), MergeError> {
     if ours.episode != theirs.episode {
-        let (field, a, b) = first_difference(
+        let (field, there, here) = first_difference(
             &serde_json::to_value(&theirs.episode)?,
             &serde_json::to_value(&ours.episode)?,
             "settings",
         );
-        bail!(
-            "{} was run with other settings: {field} is {a} there and {b} in the evaluation \
-             being merged; merge only shards of one evaluation",
-            path.display()
-        );
+        return Err(MergeError::OtherSettings {
+            file: path.to_path_buf(),
+            field,
+            there,
+            here,
+        });
     }
     if ours.first_seed != theirs.first_seed {
-        bail!(
-            "{} starts at --first-seed {}, the evaluation being merged at {}",
-            path.display(),
-            theirs.first_seed,
-            ours.first_seed
-        );
+        return Err(MergeError::OtherFirstSeed {
+            file: path.to_path_buf(),
+            there: theirs.first_seed,
+            here: ours.first_seed,
+        });
     }
     for m in &theirs.methods {
         if !ours.methods.contains(m) {
@@ -63,19 +216,18 @@ fn agree(ours: &mut EvalFile, theirs: &EvalFile, path: &Path) -> anyhow::Result<
 
 /// Copy the files of one finished episode, `wall.json` last (it is what marks an episode
 /// finished), each atomically.
-fn copy_episode(from: &Path, to: &Path) -> anyhow::Result<()> {
-    std::fs::create_dir_all(to).with_context(|| format!("creating {}", to.display()))?;
+fn copy_episode(from: &Path, to: &Path) -> Result<(), MergeError> {
+    create(to)?;
     let mut files: Vec<PathBuf> = std::fs::read_dir(from)
-        .with_context(|| format!("reading {}", from.display()))?
+        .map_err(read_error(from))?
         .filter_map(|e| e.ok().map(|e| e.path()))
         .filter(|p| p.is_file())
         .collect();
     files.sort_by_key(|p| (p.file_name().is_some_and(|n| n == WALL_FILE), p.clone()));
     for f in files {
         let Some(name) = f.file_name() else { continue };
-        let bytes = std::fs::read(&f).with_context(|| format!("reading {}", f.display()))?;
-        let path = to.join(name);
-        write_atomic(&path, &bytes).with_context(|| format!("writing {}", path.display()))?;
+        let bytes = std::fs::read(&f).map_err(read_error(&f))?;
+        write(&to.join(name), &bytes)?;
     }
     Ok(())
 }
@@ -83,7 +235,11 @@ fn copy_episode(from: &Path, to: &Path) -> anyhow::Result<()> {
 /// Merge the evaluation directories `sources` into `out` (which may be one of them, or hold
 /// every shard itself when `sources` is empty). Errors when a source's settings differ, or when
 /// an episode of the evaluation is in no source (unless `allow_missing`: then it is listed).
-pub fn merge(out: &Path, sources: &[PathBuf], allow_missing: bool) -> anyhow::Result<MergeReport> {
+pub fn merge(
+    out: &Path,
+    sources: &[PathBuf],
+    allow_missing: bool,
+) -> Result<MergeReport, MergeError> {
     let mut file = read_eval_file(out)?;
     // The registration every part must share (`None` inside: run without a protocol); unknown
     // until a directory with an evaluation is seen.
@@ -95,17 +251,10 @@ pub fn merge(out: &Path, sources: &[PathBuf], allow_missing: bool) -> anyhow::Re
     let (mut copied, mut already_there) = (0, 0);
     for src in sources {
         if !src.is_dir() {
-            bail!(
-                "{} is not a directory (give the shards' evaluation directories)",
-                src.display()
-            );
+            return Err(MergeError::NotADirectory { dir: src.clone() });
         }
-        let theirs = read_eval_file(src)?.with_context(|| {
-            format!(
-                "{} has no {EVAL_FILE}: not a dips eval output directory",
-                src.display()
-            )
-        })?;
+        let theirs =
+            read_eval_file(src)?.ok_or_else(|| MergeError::NoEvalFile { dir: src.clone() })?;
         match &mut file {
             None => file = Some(theirs.clone()),
             Some(ours) => agree(ours, &theirs, &src.join(EVAL_FILE))?,
@@ -122,13 +271,12 @@ pub fn merge(out: &Path, sources: &[PathBuf], allow_missing: bool) -> anyhow::Re
                         Some(r) => format!("{} under protocol {}", r.status.name(), r.name),
                         None => "run without a protocol".to_string(),
                     };
-                    bail!(
-                        "{} was {}, {} {}; merge only shards of one registration",
-                        src.display(),
-                        name(&their_registration),
-                        from.display(),
-                        name(ours)
-                    );
+                    return Err(MergeError::OtherRegistration {
+                        dir: src.clone(),
+                        theirs: name(&their_registration),
+                        from: from.clone(),
+                        ours: name(ours),
+                    });
                 }
             }
         }
@@ -161,27 +309,24 @@ pub fn merge(out: &Path, sources: &[PathBuf], allow_missing: bool) -> anyhow::Re
             }
         }
     }
-    let file = file.with_context(|| {
-        format!(
-            "{} holds no {EVAL_FILE} and no source was given: nothing to merge",
-            out.display()
-        )
+    let file = file.ok_or_else(|| MergeError::Nothing {
+        out: out.to_path_buf(),
     })?;
-    std::fs::create_dir_all(out).with_context(|| format!("creating {}", out.display()))?;
+    create(out)?;
     if let Some((Some(r), _)) = &registration
         && read_registration(out)?.is_none()
     {
         write_registration(out, r)?;
     }
-    let path = out.join(EVAL_FILE);
-    write_atomic(&path, serde_json::to_string_pretty(&file)?.as_bytes())
-        .with_context(|| format!("writing {}", path.display()))?;
+    write(
+        &out.join(EVAL_FILE),
+        serde_json::to_string_pretty(&file)?.as_bytes(),
+    )?;
     for r in &records {
         let path = record_path(out, r.shard());
         if !path.exists() {
-            std::fs::create_dir_all(out.join(SHARDS_DIR))?;
-            write_atomic(&path, serde_json::to_string_pretty(r)?.as_bytes())
-                .with_context(|| format!("writing {}", path.display()))?;
+            create(&out.join(SHARDS_DIR))?;
+            write(&path, serde_json::to_string_pretty(r)?.as_bytes())?;
         }
     }
     let count = records.iter().map(|r| r.count).max();
@@ -203,31 +348,18 @@ pub fn merge(out: &Path, sources: &[PathBuf], allow_missing: bool) -> anyhow::Re
         }
     }
     if !missing.is_empty() && !allow_missing {
-        let unfinished = count.map_or(String::new(), |n| {
-            let s: Vec<String> = shards_without_record(&records, n)
+        let unfinished = count.map_or(Vec::new(), |n| {
+            shards_without_record(&records, n)
                 .iter()
                 .map(ToString::to_string)
-                .collect();
-            if s.is_empty() {
-                String::new()
-            } else {
-                format!("; shards without a finished record: {}", s.join(", "))
-            }
+                .collect()
         });
-        let total = file.methods.len() * file.trials;
-        let shown: Vec<&str> = missing.iter().take(12).map(String::as_str).collect();
-        bail!(
-            "{}: {} of {total} episodes are missing: {}{}{unfinished}; rerun those shards (they \
-             resume), or merge with --allow-missing to summarise what is there",
-            out.display(),
-            missing.len(),
-            shown.join(", "),
-            if missing.len() > shown.len() {
-                ", …"
-            } else {
-                ""
-            },
-        );
+        return Err(MergeError::Missing {
+            out: out.to_path_buf(),
+            missing,
+            total: file.methods.len() * file.trials,
+            unfinished,
+        });
     }
     Ok(MergeReport {
         copied,

@@ -18,9 +18,9 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 
 use dips_host::online::Method;
-use dips_host::planning::{PRIOR_FILE, model_file, parse_sampler};
-use dips_host::policy::POLICY_DIR;
+use dips_host::planning::{POLICY_DIR, PRIOR_FILE, model_file};
 use dips_host::scenes::SceneKind;
+use dips_kernel::diffusion::SamplerConfig;
 use dips_onnx::Role;
 use serde::{Deserialize, Serialize};
 use sha2::{Digest, Sha256};
@@ -59,8 +59,9 @@ pub enum ProtocolError {
         #[source]
         source: serde_json::Error,
     },
-    /// A field every protocol spells out is missing.
-    #[error("{path}: missing field `{field}` (write protocols with `dips eval --write-protocol`)")]
+    /// A field every protocol spells out is missing (a protocol written by hand, not from a
+    /// run's settings).
+    #[error("{path}: missing field `{field}`")]
     MissingField {
         /// The file.
         path: PathBuf,
@@ -91,7 +92,7 @@ pub enum ProtocolError {
     /// This run's settings are not the protocol's.
     #[error("{setting} is {protocol} in the protocol and {run} in this run")]
     Differs {
-        /// The flag of the setting (`--sampler`).
+        /// The setting, as its field in `eval.json` (`episode.sampler`, `first_seed`).
         setting: String,
         /// Its value in the protocol, as JSON.
         protocol: String,
@@ -136,8 +137,8 @@ pub enum ProtocolError {
     },
     /// The protocol file is not committed as it is.
     #[error(
-        "{path} {why}: commit it before the run (`git add {path} && git commit`), or pass \
-         --protocol-uncommitted to label the results unregistered"
+        "{path} {why}: commit it before the run (`git add {path} && git commit`), or run it \
+         uncommitted to label the results unregistered"
     )]
     NotCommitted {
         /// The protocol file.
@@ -145,8 +146,21 @@ pub enum ProtocolError {
         /// What git says (`is not tracked by git`, `differs from HEAD`).
         why: String,
     },
+    /// The output directory holds registered results and this run has no protocol.
+    #[error(
+        "{dir} {holds}; a run without a protocol would mix into them (resume with the \
+         protocol {protocol}): use another output directory"
+    )]
+    Unregistered {
+        /// The output directory.
+        dir: PathBuf,
+        /// What it holds.
+        holds: String,
+        /// The protocol file of its registration.
+        protocol: String,
+    },
     /// The output directory holds results of another registration, or none.
-    #[error("{dir} {holds}; {why}: use another --out")]
+    #[error("{dir} {holds}; {why}: use another output directory")]
     Directory {
         /// The output directory.
         dir: PathBuf,
@@ -239,13 +253,6 @@ pub fn hash_models(
         .into_iter()
         .map(|f| Ok((f.clone(), sha256_file(&dir.join(&f))?)))
         .collect()
-}
-
-/// The flag of a settings field named by [`dips_batch::first_difference`] (`.episode.time_budget_s`
-/// → `--time-budget-s`).
-fn flag_of(field: &str) -> String {
-    let last = field.rsplit('.').next().unwrap_or(field);
-    format!("--{}", last.replace('_', "-"))
 }
 
 /// `value` with `eval.episode.models` (a path, not compared) blanked.
@@ -360,7 +367,7 @@ impl Protocol {
             return Err(invalid("eval.methods", "is empty".into()));
         }
         for (i, m) in e.methods.iter().enumerate() {
-            if Method::from_name(m).is_err() {
+            if m.parse::<Method>().is_err() {
                 return Err(invalid(
                     "eval.methods",
                     format!(
@@ -382,8 +389,11 @@ impl Protocol {
                 "+ trials overflows the seed range".into(),
             ));
         }
-        if let Err(err) = parse_sampler(&e.episode.sampler) {
-            return Err(invalid("eval.episode.sampler", format!("{err:#}")));
+        if let Err(err) = e.episode.sampler.parse::<SamplerConfig>() {
+            return Err(invalid(
+                "eval.episode.sampler",
+                format!("is {:?}: {err}", e.episode.sampler),
+            ));
         }
         for (file, hash) in &protocol.models {
             if hash.len() != 64 || !hash.bytes().all(|b| matches!(b, b'0'..=b'9' | b'a'..=b'f')) {
@@ -407,7 +417,7 @@ impl Protocol {
         self.eval
             .methods
             .iter()
-            .filter_map(|m| Method::from_name(m).ok())
+            .filter_map(|m| m.parse().ok())
             .collect()
     }
 
@@ -438,7 +448,7 @@ impl Protocol {
     }
 
     /// Check that `settings` are the protocol's: task, methods, seeds and every episode
-    /// setting (the models' path aside); the first difference is named by its flag.
+    /// setting (the models' path aside); the first difference is named by its field.
     pub fn check_settings(&self, settings: &EvalSettings) -> Result<(), ProtocolError> {
         let value = |e: &EvalFile| {
             serde_json::to_value(e)
@@ -452,7 +462,7 @@ impl Protocol {
         if ours != run {
             let (field, protocol, run) = dips_batch::first_difference(&ours, &run, "");
             return Err(ProtocolError::Differs {
-                setting: flag_of(&field),
+                setting: field.trim_start_matches('.').to_string(),
                 protocol,
                 run,
             });
@@ -921,13 +931,11 @@ pub fn claim_registration(dir: &Path, ours: Option<&Registration>) -> Result<(),
     };
     match (theirs, ours) {
         (None, None) => Ok(()),
-        (Some(t), None) => Err(refuse(
-            format!("holds {}", describe(&t)),
-            &format!(
-                "a run without --protocol would mix into them (resume with --protocol {})",
-                t.protocol
-            ),
-        )),
+        (Some(t), None) => Err(ProtocolError::Unregistered {
+            dir: dir.to_path_buf(),
+            holds: format!("holds {}", describe(&t)),
+            protocol: t.protocol,
+        }),
         (None, Some(o)) => {
             if dir.join(EVAL_FILE).exists() {
                 return Err(refuse(
@@ -968,13 +976,6 @@ pub fn claim_registration(dir: &Path, ours: Option<&Registration>) -> Result<(),
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn flags_are_named_from_fields() {
-        assert_eq!(flag_of(".episode.time_budget_s"), "--time-budget-s");
-        assert_eq!(flag_of(".first_seed"), "--first-seed");
-        assert_eq!(flag_of(".methods"), "--methods");
-    }
 
     #[test]
     fn sha256_of_known_bytes() {

@@ -2,11 +2,27 @@
 //! section per method with its median trial's animation and plots over time and a table of
 //! every trial linking to that trial's own report (written beside its `result.json`).
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
-use anyhow::Context;
 use dips_report::html::{Cell, Page};
-use dips_report::{EPISODE_GIF, REPORT_HTML, Recording, TIMELINE_SVG};
+use dips_report::{EPISODE_GIF, REPORT_HTML, Recording, ReportError, TIMELINE_SVG};
+
+/// Why an evaluation's report could not be written.
+#[derive(Debug, thiserror::Error)]
+pub enum EvalReportError {
+    /// A trial's own report could not be written.
+    #[error("writing the report of {}", episode.display())]
+    Episode {
+        /// The trial's directory.
+        episode: PathBuf,
+        /// Why.
+        #[source]
+        source: ReportError,
+    },
+    /// A trial's result could not be read, or the page could not be written.
+    #[error(transparent)]
+    Report(#[from] ReportError),
+}
 
 use crate::settings::episode_dir;
 use crate::summary::{MethodSummary, Summary, Trial};
@@ -82,7 +98,7 @@ pub fn write_report(
     s: &Summary,
     options: &ReportOptions,
     progress: &mut dyn FnMut(usize, usize),
-) -> anyhow::Result<()> {
+) -> Result<(), EvalReportError> {
     let screwdriver = s.task == "screwdriver";
     let digits = if screwdriver { 3 } else { 2 };
     let medians: Vec<(String, u64)> = s
@@ -103,8 +119,12 @@ pub fn write_report(
         let rec = Recording::read(&ep.join("result.json"))?;
         let animate =
             medians.contains(&(t.method.clone(), t.seed)) && options.animate.contains(&t.method);
-        dips_report::write_episode_report(&ep, &rec, animate, &mut |_, _| {})
-            .with_context(|| format!("writing the report of {}", ep.display()))?;
+        dips_report::write_episode_report(&ep, &rec, animate, &mut |_, _| {}).map_err(
+            |source| EvalReportError::Episode {
+                episode: ep.clone(),
+                source,
+            },
+        )?;
         progress(k + 1, chosen.len());
     }
     let e = &s.eval.episode;

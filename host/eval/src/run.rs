@@ -1,22 +1,123 @@
 //! The episodes of one shard on `jobs` threads: resumable, atomic, with a progress bar.
 
 use std::io::Write;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::sync::Mutex;
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::time::Instant;
 
-use anyhow::{Context, anyhow};
-use dips_batch::Progress;
+use dips_batch::{BatchError, Progress, Shard};
 use dips_fs::write_atomic;
 use dips_host::execute::{EpisodeResult, ExecSettings};
-use dips_host::hand::{HandOptions, Hands, TrackerNoise, WorldHands};
-use dips_host::online::{Method, run_online};
-use dips_host::planning::{Models, PlanService};
-use dips_link::RemotePlanner;
+use dips_host::hand::{HandError, HandKind, HandOptions, Hands, TrackerNoise, WorldHands};
+use dips_host::online::{Method, OnlineError, run_online};
+use dips_host::planning::{Models, ModelsError, PlanService};
+use dips_link::{LinkError, RemoteError, RemotePlanner};
 use serde::{Deserialize, Serialize};
 
-use crate::settings::{EvalSettings, claim_dir, episode_dir};
+use crate::settings::{EvalFileError, EvalSettings, SettingsError, claim_dir, episode_dir};
+
+/// Why an evaluation run stopped (finished episodes stay). An episode that fails is not
+/// one of these: it is recorded as a failed trial ([`EpisodeWall::error`]).
+#[derive(Debug, thiserror::Error)]
+pub enum RunError {
+    /// The settings are not an evaluation.
+    #[error(transparent)]
+    Settings(#[from] SettingsError),
+    /// The hand cannot be opened.
+    #[error("hand {hand}")]
+    Hand {
+        /// The hand asked for.
+        hand: HandKind,
+        /// Why it cannot be opened.
+        #[source]
+        source: HandError,
+    },
+    /// The output directory cannot be claimed.
+    #[error(transparent)]
+    Dir(#[from] EvalFileError),
+    /// The models cannot be loaded.
+    #[error("loading the models in {}", dir.display())]
+    Models {
+        /// The models' directory.
+        dir: PathBuf,
+        /// Why.
+        #[source]
+        source: Box<ModelsError>,
+    },
+    /// The sampler cannot run on the models.
+    #[error(transparent)]
+    Sampler(Box<ModelsError>),
+    /// The worker threads cannot be started.
+    #[error("thread pool: {0}")]
+    ThreadPool(rayon::ThreadPoolBuildError),
+    /// A directory cannot be made.
+    #[error("creating {}", dir.display())]
+    Create {
+        /// The directory.
+        dir: PathBuf,
+        /// Why.
+        #[source]
+        source: std::io::Error,
+    },
+    /// A file cannot be written.
+    #[error("writing {}", path.display())]
+    Write {
+        /// The file.
+        path: PathBuf,
+        /// Why.
+        #[source]
+        source: std::io::Error,
+    },
+    /// A result cannot be written as JSON.
+    #[error(transparent)]
+    Json(#[from] serde_json::Error),
+    /// The shard's record cannot be written.
+    #[error("recording shard {shard} in {}", dir.display())]
+    Record {
+        /// The shard.
+        shard: Shard,
+        /// The evaluation directory.
+        dir: PathBuf,
+        /// Why.
+        #[source]
+        source: BatchError,
+    },
+}
+
+/// Why one episode failed: recorded in its `wall.json`, counted as a failed trial.
+#[derive(Debug, thiserror::Error)]
+enum EpisodeError {
+    #[error(transparent)]
+    Models(#[from] ModelsError),
+    #[error(transparent)]
+    Hand(#[from] HandError),
+    #[error(transparent)]
+    Link(#[from] LinkError),
+    #[error(transparent)]
+    Remote(#[from] RemoteError),
+    #[error(transparent)]
+    Online(#[from] OnlineError),
+}
+
+/// `e` and its causes on one line, each after a `: `.
+fn with_causes(e: &dyn std::error::Error) -> String {
+    let mut text = e.to_string();
+    let mut cause = e.source();
+    while let Some(c) = cause {
+        text.push_str(": ");
+        text.push_str(&c.to_string());
+        cause = c.source();
+    }
+    text
+}
+
+fn write_error(path: &Path) -> impl FnOnce(std::io::Error) -> RunError + '_ {
+    move |source| RunError::Write {
+        path: path.to_path_buf(),
+        source,
+    }
+}
 
 /// `wall.json` of an episode: its wall time, and the error that ended it, if one did.
 #[derive(Debug, Clone, Serialize, Deserialize)]
@@ -62,20 +163,21 @@ pub fn write_result(
     result: &EpisodeResult,
     dir: &Path,
     noise: Option<TrackerNoise>,
-) -> anyhow::Result<()> {
+) -> Result<(), RunError> {
     let file = dir.join("result.json");
     let Some(noise) = noise else {
-        return result
-            .write(dir)
-            .with_context(|| format!("writing {}", file.display()));
+        return result.write(dir).map_err(write_error(&file));
     };
     let mut value = serde_json::to_value(result)?;
     if let Some(map) = value.as_object_mut() {
         map.insert("tracker_noise".into(), serde_json::to_value(noise)?);
     }
-    std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+    std::fs::create_dir_all(dir).map_err(|source| RunError::Create {
+        dir: dir.to_path_buf(),
+        source,
+    })?;
     write_atomic(&file, serde_json::to_string_pretty(&value)?.as_bytes())
-        .with_context(|| format!("writing {}", file.display()))
+        .map_err(write_error(&file))
 }
 
 /// What a run did.
@@ -99,11 +201,14 @@ fn run_episode(
     method: Method,
     seed: u64,
     dir: &Path,
-) -> anyhow::Result<Option<String>> {
-    std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+) -> Result<Option<String>, RunError> {
+    std::fs::create_dir_all(dir).map_err(|source| RunError::Create {
+        dir: dir.to_path_buf(),
+        source,
+    })?;
     let t0 = Instant::now();
     let mut log = Vec::new();
-    let outcome = (|| {
+    let outcome = (|| -> Result<EpisodeResult, EpisodeError> {
         let models = if method.needs_models() {
             let mut m = Models::load(settings.engine, &settings.models, settings.task.task())?;
             m.set_threads(settings.model_threads);
@@ -141,7 +246,7 @@ fn run_episode(
             )?),
             None => None,
         };
-        run_online(
+        Ok(run_online(
             &mut *hand,
             method,
             seed,
@@ -150,17 +255,16 @@ fn run_episode(
             &exec,
             &settings.online,
             &mut progress,
-        )
+        )?)
     })();
     let error = match outcome {
         Ok(result) => {
             write_result(&result, dir, settings.tracker_noise)?;
             None
         }
-        Err(e) => Some(format!("{e:#}")),
+        Err(e) => Some(with_causes(&e)),
     };
-    write_atomic(&dir.join("log.txt"), &log)
-        .with_context(|| format!("writing {}", dir.join("log.txt").display()))?;
+    write_atomic(&dir.join("log.txt"), &log).map_err(write_error(&dir.join("log.txt")))?;
     let wall = EpisodeWall {
         seconds: t0.elapsed().as_secs_f64(),
         jobs: settings.jobs,
@@ -171,7 +275,7 @@ fn run_episode(
         &dir.join(WALL_FILE),
         serde_json::to_string_pretty(&wall)?.as_bytes(),
     )
-    .with_context(|| format!("writing {}", dir.join(WALL_FILE).display()))?;
+    .map_err(write_error(&dir.join(WALL_FILE)))?;
     Ok(error)
 }
 
@@ -181,7 +285,7 @@ fn run_episode(
 /// every episode. An I/O failure stops the run (finished episodes stay); an episode whose
 /// world or optimiser fails is recorded as a failed trial and the run goes on. The episodes
 /// run on our world ([`run_eval_on`] takes the hands).
-pub fn run_eval(settings: &EvalSettings, dir: &Path) -> anyhow::Result<EvalReport> {
+pub fn run_eval(settings: &EvalSettings, dir: &Path) -> Result<EvalReport, RunError> {
     run_eval_on(settings, dir, &WorldHands)
 }
 
@@ -191,7 +295,7 @@ pub fn run_eval_on(
     settings: &EvalSettings,
     dir: &Path,
     hands: &dyn Hands,
-) -> anyhow::Result<EvalReport> {
+) -> Result<EvalReport, RunError> {
     settings.validate()?;
     // A hand that cannot be opened (not in this binary, a missing library, noise on our
     // world) fails here, before the directory is claimed.
@@ -204,12 +308,19 @@ pub fn run_eval_on(
                 seed: settings.first_seed,
             },
         )
-        .with_context(|| format!("--hand {}", settings.hand))?;
+        .map_err(|source| RunError::Hand {
+            hand: settings.hand,
+            source,
+        })?;
     claim_dir(dir, settings)?;
     if settings.methods.iter().any(|m| m.needs_models()) {
         Models::load(settings.engine, &settings.models, settings.task.task())
-            .with_context(|| format!("loading the models in {}", settings.models.display()))?
-            .check_sampler(&settings.online.sampler, settings.task.task())?;
+            .map_err(|source| RunError::Models {
+                dir: settings.models.clone(),
+                source: Box::new(source),
+            })?
+            .check_sampler(&settings.online.sampler, settings.task.task())
+            .map_err(|e| RunError::Sampler(Box::new(e)))?;
     }
     let episodes = settings.episodes();
     let mut pending: Vec<(Method, u64)> = episodes
@@ -238,13 +349,13 @@ pub fn run_eval_on(
     );
     let started = Instant::now();
     let errors = AtomicUsize::new(0);
-    let failure: Mutex<Option<anyhow::Error>> = Mutex::new(None);
+    let failure: Mutex<Option<RunError>> = Mutex::new(None);
     // `jobs` workers take episodes from one queue; the pool has `jobs × model_threads`
     // threads, so an episode's CSVTO (rayon) uses the cores its model calls use.
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(settings.jobs * settings.model_threads)
         .build()
-        .map_err(|e| anyhow!("thread pool: {e}"))?;
+        .map_err(RunError::ThreadPool)?;
     let queue = Mutex::new(pending.iter().copied());
     pool.scope(|scope| {
         for _ in 0..settings.jobs {
@@ -286,8 +397,13 @@ pub fn run_eval_on(
     };
     // A run cut short by `stop_after` has not finished its shard.
     if report.ran + report.skipped == episodes.len() {
-        dips_batch::write_record(dir, settings.shard, report.seconds, &report)
-            .with_context(|| format!("recording shard {} in {}", settings.shard, dir.display()))?;
+        dips_batch::write_record(dir, settings.shard, report.seconds, &report).map_err(
+            |source| RunError::Record {
+                shard: settings.shard,
+                dir: dir.to_path_buf(),
+                source,
+            },
+        )?;
     }
     Ok(report)
 }

@@ -2,11 +2,13 @@
 
 use std::path::{Path, PathBuf};
 
-use anyhow::{Context, bail};
 use dips_batch::{ProgressMode, Shard};
 use dips_host::hand::{HandKind, TrackerNoise};
-use dips_host::online::{Method, OnlineSettings, SearchDepth, check_time_budget_s};
+use dips_host::online::{
+    Method, OnlineSettings, SearchDepth, TimeBudgetError, check_time_budget_s,
+};
 use dips_host::scenes::SceneKind;
+use dips_kernel::name::UnknownValue;
 use dips_kernel::search::CostToCome;
 use dips_kernel::task::CardGoals;
 use dips_link::KernelTarget;
@@ -62,8 +64,8 @@ pub struct EpisodeSettings {
 
 impl EpisodeSettings {
     /// The first setting where `self` (the directory's) and `other` (this run's) differ, as
-    /// (its name, its value in `self`, its value in `other`), values as JSON writes them; the
-    /// name is the flag's where there is one (`--sampler`, `--node-budget`, ...).
+    /// (its field in `eval.json`'s `episode`, its value in `self`, its value in `other`),
+    /// values as JSON writes them (`sampler`, `node_budget`, `tracker_noise.rotation`, ...).
     pub fn first_difference(&self, other: &Self) -> (String, String, String) {
         let (a, b) = (
             serde_json::to_value(self).unwrap_or_default(),
@@ -73,11 +75,7 @@ impl EpisodeSettings {
             return ("settings".into(), String::new(), String::new());
         }
         let (field, there, here) = dips_batch::first_difference(&a, &b, "");
-        (
-            format!("--{}", field.trim_start_matches('.').replace('_', "-")),
-            there,
-            here,
-        )
+        (field.trim_start_matches('.').to_string(), there, here)
     }
 }
 
@@ -143,42 +141,170 @@ pub struct EvalSettings {
     pub registration: Option<crate::protocol::Registration>,
 }
 
+/// Settings that no evaluation can run with ([`EvalSettings::validate`]). Each message names
+/// the setting, its value and what is allowed.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum SettingsError {
+    /// No method was asked for.
+    #[error("the method list is empty; available: {}", Method::NAMES.join(", "))]
+    NoMethods,
+    /// A method was asked for twice.
+    #[error("the method list names {0} twice")]
+    MethodTwice(Method),
+    /// No trials.
+    #[error("trials: 0, must be at least 1")]
+    NoTrials,
+    /// No episodes at once.
+    #[error("jobs: 0, must be at least 1")]
+    NoJobs,
+    /// No threads per model call.
+    #[error("model threads: 0, must be at least 1")]
+    NoModelThreads,
+    /// The seeds run past `u64::MAX`.
+    #[error("first seed {first_seed} + {trials} trials overflows the seed range")]
+    SeedOverflow {
+        /// The first seed.
+        first_seed: u64,
+        /// The trials.
+        trials: usize,
+    },
+    /// The planning call's time budget is not a budget.
+    #[error(transparent)]
+    TimeBudget(#[from] TimeBudgetError),
+    /// A mode limit of 0.
+    #[error("mode limit: 0, must be at least 1")]
+    NoModes,
+    /// Several episodes at once on one TCP kernel.
+    #[error(
+        "kernel {kernel}: a TCP kernel serves one connection at a time; run {jobs} jobs on a \
+         spawned kernel (one firmware per episode), or one job on it"
+    )]
+    TcpJobs {
+        /// The kernel.
+        kernel: KernelTarget,
+        /// The episodes asked to run at once.
+        jobs: usize,
+    },
+}
+
+/// Why `eval.json` cannot be read, or an output directory cannot be claimed
+/// ([`read_eval_file`], [`claim_dir`]). Each message names the file and the setting.
+#[derive(Debug, thiserror::Error)]
+pub enum EvalFileError {
+    /// The file cannot be read.
+    #[error("reading {}", path.display())]
+    Read {
+        /// The file.
+        path: PathBuf,
+        /// Why.
+        #[source]
+        source: std::io::Error,
+    },
+    /// The file is not an `eval.json`.
+    #[error("{} is not an eval settings file (delete it to start over)", path.display())]
+    Parse {
+        /// The file.
+        path: PathBuf,
+        /// What serde found.
+        #[source]
+        source: serde_json::Error,
+    },
+    /// The file names an unknown task.
+    #[error("{}: {error}", path.display())]
+    Task {
+        /// The file.
+        path: PathBuf,
+        /// The task it names.
+        error: UnknownValue,
+    },
+    /// The output directory cannot be made.
+    #[error("cannot create the output directory {}", dir.display())]
+    Create {
+        /// The directory.
+        dir: PathBuf,
+        /// Why.
+        #[source]
+        source: std::io::Error,
+    },
+    /// The directory holds an evaluation of other settings.
+    #[error(
+        "{} holds an evaluation with other settings: {field} is {there} there and {here} here; \
+         use another output directory, or the same task, sampler, budgets, mode limit, \
+         cost-to-come, search depth, models, engine, hand, tracker noise and card goals",
+        file.display()
+    )]
+    OtherSettings {
+        /// The directory's `eval.json`.
+        file: PathBuf,
+        /// The first setting that differs ([`EpisodeSettings::first_difference`]).
+        field: String,
+        /// Its value there, as JSON.
+        there: String,
+        /// Its value in this run, as JSON.
+        here: String,
+    },
+    /// The directory's evaluation starts at another seed.
+    #[error("{} was started with first seed {there}; this run asks for {here}", file.display())]
+    OtherFirstSeed {
+        /// The directory's `eval.json`.
+        file: PathBuf,
+        /// Its first seed.
+        there: u64,
+        /// This run's.
+        here: u64,
+    },
+    /// The directory holds another registration's results.
+    #[error(transparent)]
+    Protocol(#[from] crate::protocol::ProtocolError),
+    /// The file cannot be written.
+    #[error("writing {}", path.display())]
+    Write {
+        /// The file.
+        path: PathBuf,
+        /// Why.
+        #[source]
+        source: std::io::Error,
+    },
+    /// The settings cannot be written as JSON.
+    #[error(transparent)]
+    Json(#[from] serde_json::Error),
+}
+
 impl EvalSettings {
-    /// Check the settings; the error names the flag and what is allowed.
-    pub fn validate(&self) -> anyhow::Result<()> {
+    /// Check the settings; the error names the setting and what is allowed.
+    pub fn validate(&self) -> Result<(), SettingsError> {
         if self.methods.is_empty() {
-            bail!(
-                "--methods is empty; available: {}",
-                Method::ALL.map(Method::name).join(", ")
-            );
+            return Err(SettingsError::NoMethods);
         }
         for (i, m) in self.methods.iter().enumerate() {
             if self.methods[..i].contains(m) {
-                bail!("--methods names {} twice", m.name());
+                return Err(SettingsError::MethodTwice(*m));
             }
         }
         if self.trials == 0 {
-            bail!("--trials must be at least 1");
+            return Err(SettingsError::NoTrials);
         }
         if self.jobs == 0 {
-            bail!("--jobs must be at least 1");
+            return Err(SettingsError::NoJobs);
         }
         if self.model_threads == 0 {
-            bail!("--model-threads must be at least 1");
+            return Err(SettingsError::NoModelThreads);
         }
         if self.first_seed.checked_add(self.trials as u64).is_none() {
-            bail!("--first-seed + --trials overflows the seed range");
+            return Err(SettingsError::SeedOverflow {
+                first_seed: self.first_seed,
+                trials: self.trials,
+            });
         }
         check_time_budget_s(self.online.time_budget_s)?;
         if self.online.max_modes == Some(0) {
-            bail!("--max-modes must be at least 1");
+            return Err(SettingsError::NoModes);
         }
         if matches!(self.kernel, KernelTarget::Tcp(_)) && self.jobs > 1 {
-            bail!(
-                "--kernel {}: a TCP kernel serves one connection at a time; use --jobs 1, or \
-                 --kernel spawn (one firmware per episode)",
-                self.kernel
-            );
+            return Err(SettingsError::TcpJobs {
+                kernel: self.kernel.clone(),
+                jobs: self.jobs,
+            });
         }
         Ok(())
     }
@@ -257,25 +383,24 @@ pub struct EvalFile {
 pub const EVAL_FILE: &str = "eval.json";
 
 /// Read `dir/eval.json` if present.
-pub fn read_eval_file(dir: &Path) -> anyhow::Result<Option<EvalFile>> {
+pub fn read_eval_file(dir: &Path) -> Result<Option<EvalFile>, EvalFileError> {
     let path = dir.join(EVAL_FILE);
     if !path.exists() {
         return Ok(None);
     }
-    let text =
-        std::fs::read_to_string(&path).with_context(|| format!("reading {}", path.display()))?;
-    let mut file: EvalFile = serde_json::from_str(&text).with_context(|| {
-        format!(
-            "{} is not an eval settings file (delete it to start over)",
-            path.display()
-        )
-    })?;
+    let text = match std::fs::read_to_string(&path) {
+        Ok(text) => text,
+        Err(source) => return Err(EvalFileError::Read { path, source }),
+    };
+    let mut file: EvalFile = match serde_json::from_str(&text) {
+        Ok(file) => file,
+        Err(source) => return Err(EvalFileError::Parse { path, source }),
+    };
     if file.episode.search_depth.is_empty() {
-        let scene: SceneKind = file
-            .episode
-            .task
-            .parse()
-            .map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
+        let scene: SceneKind = match file.episode.task.parse() {
+            Ok(scene) => scene,
+            Err(error) => return Err(EvalFileError::Task { path, error }),
+        };
         file.episode.search_depth = depth_before_recorded(scene).name().to_string();
     }
     Ok(Some(file))
@@ -284,28 +409,29 @@ pub fn read_eval_file(dir: &Path) -> anyhow::Result<Option<EvalFile>> {
 /// Write `dir/eval.json` for `settings`, merged with the file already there; errors when the
 /// directory holds episodes of other settings, or of another registration
 /// ([`crate::protocol::claim_registration`], which writes `registration.json`).
-pub fn claim_dir(dir: &Path, settings: &EvalSettings) -> anyhow::Result<EvalFile> {
-    std::fs::create_dir_all(dir)
-        .with_context(|| format!("cannot create the output directory {}", dir.display()))?;
+pub fn claim_dir(dir: &Path, settings: &EvalSettings) -> Result<EvalFile, EvalFileError> {
+    std::fs::create_dir_all(dir).map_err(|source| EvalFileError::Create {
+        dir: dir.to_path_buf(),
+        source,
+    })?;
     let mut file = settings.eval_file();
     let episode = file.episode.clone();
     if let Some(old) = read_eval_file(dir)? {
         if old.episode != episode {
-            let (name, there, here) = old.episode.first_difference(&episode);
-            bail!(
-                "{} holds an evaluation with other settings: {name} is {there} there and {here} \
-                 here; use another --out, or the same task, sampler, budgets, mode limit, \
-                 cost-to-come, search depth, models, engine, hand, tracker noise and card goals",
-                dir.join(EVAL_FILE).display(),
-            );
+            let (field, there, here) = old.episode.first_difference(&episode);
+            return Err(EvalFileError::OtherSettings {
+                file: dir.join(EVAL_FILE),
+                field,
+                there,
+                here,
+            });
         }
         if old.first_seed != settings.first_seed {
-            bail!(
-                "{} was started with --first-seed {}; this run asks for {}",
-                dir.join(EVAL_FILE).display(),
-                old.first_seed,
-                settings.first_seed
-            );
+            return Err(EvalFileError::OtherFirstSeed {
+                file: dir.join(EVAL_FILE),
+                there: old.first_seed,
+                here: settings.first_seed,
+            });
         }
         let mut methods = old.methods.clone();
         for m in &file.methods {
@@ -323,7 +449,7 @@ pub fn claim_dir(dir: &Path, settings: &EvalSettings) -> anyhow::Result<EvalFile
     // temporary file after the host too, so their writes never share one.
     let path = dir.join(EVAL_FILE);
     dips_fs::write_atomic(&path, text.as_bytes())
-        .with_context(|| format!("writing {}", path.display()))?;
+        .map_err(|source| EvalFileError::Write { path, source })?;
     Ok(file)
 }
 
@@ -370,7 +496,7 @@ mod tests {
         assert_eq!(serde_json::from_value::<EpisodeSettings>(v).unwrap(), paper);
         assert_eq!(
             settings().first_difference(&paper),
-            ("--card-goals".into(), "(absent)".into(), "\"paper\"".into()),
+            ("card_goals".into(), "(absent)".into(), "\"paper\"".into()),
             "a resumed run with other card goals is refused"
         );
     }
@@ -400,7 +526,7 @@ mod tests {
         );
         assert_eq!(
             settings().first_difference(&mujoco).0,
-            "--hand",
+            "hand",
             "a resumed run on another hand is refused"
         );
     }
@@ -414,11 +540,7 @@ mod tests {
         };
         assert_eq!(
             there.first_difference(&here),
-            (
-                "--sampler".into(),
-                "\"ddpm:16\"".into(),
-                "\"ddim:8\"".into()
-            )
+            ("sampler".into(), "\"ddpm:16\"".into(), "\"ddim:8\"".into())
         );
         let here = EpisodeSettings {
             max_modes: Some(3),
@@ -426,7 +548,7 @@ mod tests {
         };
         assert_eq!(
             there.first_difference(&here),
-            ("--max-modes".into(), "null".into(), "3".into())
+            ("max_modes".into(), "null".into(), "3".into())
         );
     }
 }

@@ -1,19 +1,92 @@
 //! `results.json`, `results.md` and the box plots of an evaluation directory, from every
 //! finished episode in it (all shards).
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
-use anyhow::Context;
 use dips_fs::write_atomic;
 use dips_host::execute::episode::episode_success;
 use dips_host::scenes::SceneKind;
-use dips_plot::{BoxPlot, BoxSeries};
+use dips_kernel::name::UnknownValue;
+use dips_plot::{BoxPlot, BoxSeries, PlotError};
 use dips_report::EpisodeFile;
 use serde::Serialize;
 
-use crate::protocol::{Registration, RegistrationStatus, read_registration};
+use crate::protocol::{ProtocolError, Registration, RegistrationStatus, read_registration};
 use crate::run::{EpisodeWall, WALL_FILE};
-use crate::settings::{EvalFile, episode_dir, read_eval_file};
+use crate::settings::{EVAL_FILE, EvalFile, EvalFileError, episode_dir, read_eval_file};
+
+/// Why an evaluation directory cannot be summarised. Each message names the file.
+#[derive(Debug, thiserror::Error)]
+pub enum SummaryError {
+    /// The directory holds no evaluation.
+    #[error("{} holds no {EVAL_FILE}", dir.display())]
+    NoEvalFile {
+        /// The directory.
+        dir: PathBuf,
+    },
+    /// `eval.json` names an unknown task.
+    #[error("{}: {error}", file.display())]
+    Task {
+        /// The directory's `eval.json`.
+        file: PathBuf,
+        /// The task it names.
+        error: UnknownValue,
+    },
+    /// An episode's `wall.json` is not one.
+    #[error("{} is not a wall-time file", file.display())]
+    Wall {
+        /// The file.
+        file: PathBuf,
+        /// What serde found.
+        #[source]
+        source: serde_json::Error,
+    },
+    /// An episode's `result.json` cannot be read.
+    #[error("reading {}", file.display())]
+    Read {
+        /// The file.
+        file: PathBuf,
+        /// Why.
+        #[source]
+        source: std::io::Error,
+    },
+    /// An episode's `result.json` is not one.
+    #[error("{} is not an episode result", file.display())]
+    Result {
+        /// The file.
+        file: PathBuf,
+        /// What serde found.
+        #[source]
+        source: serde_json::Error,
+    },
+    /// A summary file cannot be written.
+    #[error("writing {}", file.display())]
+    Write {
+        /// The file.
+        file: PathBuf,
+        /// Why.
+        #[source]
+        source: std::io::Error,
+    },
+    /// A figure cannot be drawn.
+    #[error("drawing {name}")]
+    Draw {
+        /// The figure (`outcome`, `planning`).
+        name: &'static str,
+        /// Why.
+        #[source]
+        source: PlotError,
+    },
+    /// `eval.json` cannot be read.
+    #[error(transparent)]
+    EvalFile(#[from] EvalFileError),
+    /// `registration.json` cannot be read.
+    #[error(transparent)]
+    Protocol(#[from] ProtocolError),
+    /// `results.json` cannot be written as JSON.
+    #[error(transparent)]
+    Json(#[from] serde_json::Error),
+}
 
 /// One trial in `results.json`.
 #[derive(Debug, Clone, Serialize)]
@@ -146,13 +219,15 @@ fn read_trial(
     method: &str,
     seed: u64,
     scene: SceneKind,
-) -> anyhow::Result<Option<Trial>> {
+) -> Result<Option<Trial>, SummaryError> {
     let ep = episode_dir(dir, method, seed);
     let Ok(text) = std::fs::read_to_string(ep.join(WALL_FILE)) else {
         return Ok(None);
     };
-    let wall: EpisodeWall = serde_json::from_str(&text)
-        .with_context(|| format!("{} is not a wall-time file", ep.join(WALL_FILE).display()))?;
+    let wall: EpisodeWall = serde_json::from_str(&text).map_err(|source| SummaryError::Wall {
+        file: ep.join(WALL_FILE),
+        source,
+    })?;
     if let Some(error) = wall.error {
         return Ok(Some(Trial {
             method: method.to_string(),
@@ -167,11 +242,15 @@ fn read_trial(
             error: Some(error),
         }));
     }
-    let path = ep.join("result.json");
-    let text =
-        std::fs::read_to_string(&path).with_context(|| format!("reading {}", path.display()))?;
-    let r: EpisodeFile = serde_json::from_str(&text)
-        .with_context(|| format!("{} is not an episode result", path.display()))?;
+    let file = ep.join("result.json");
+    let text = match std::fs::read_to_string(&file) {
+        Ok(text) => text,
+        Err(source) => return Err(SummaryError::Read { file, source }),
+    };
+    let r: EpisodeFile = match serde_json::from_str(&text) {
+        Ok(r) => r,
+        Err(source) => return Err(SummaryError::Result { file, source }),
+    };
     let outcome = match scene {
         SceneKind::Screwdriver => r.final_yaw,
         SceneKind::Card => r.final_distance_m.map(|d| d * 100.0),
@@ -193,13 +272,15 @@ fn read_trial(
 
 /// Read every finished episode of `dir` and write `results.json`, `results.md` and the box
 /// plots (`outcome.svg/png`, `planning.svg/png`).
-pub fn summarize(dir: &Path) -> anyhow::Result<Summary> {
-    let eval =
-        read_eval_file(dir)?.with_context(|| format!("{} holds no eval.json", dir.display()))?;
+pub fn summarize(dir: &Path) -> Result<Summary, SummaryError> {
+    let eval = read_eval_file(dir)?.ok_or_else(|| SummaryError::NoEvalFile {
+        dir: dir.to_path_buf(),
+    })?;
     let task = eval.episode.task.clone();
-    let scene: SceneKind = task
-        .parse()
-        .map_err(|e| anyhow::anyhow!("{}: {e}", dir.join("eval.json").display()))?;
+    let scene: SceneKind = task.parse().map_err(|error| SummaryError::Task {
+        file: dir.join(EVAL_FILE),
+        error,
+    })?;
     let registration = read_registration(dir)?;
     let mut trials = Vec::new();
     let mut methods = Vec::new();
@@ -207,7 +288,7 @@ pub fn summarize(dir: &Path) -> anyhow::Result<Summary> {
         let mine: Vec<Trial> = (0..eval.trials)
             .map(|i| read_trial(dir, m, eval.first_seed + i as u64, scene))
             .filter_map(Result::transpose)
-            .collect::<anyhow::Result<_>>()?;
+            .collect::<Result<_, _>>()?;
         let outcomes: Vec<f64> = mine.iter().filter_map(|t| t.outcome).collect();
         let planning: Vec<f64> = mine.iter().flat_map(|t| t.planning_s.clone()).collect();
         let csvto: Vec<f64> = mine.iter().filter_map(|t| t.csvto_step_median_s).collect();
@@ -240,8 +321,10 @@ pub fn summarize(dir: &Path) -> anyhow::Result<Summary> {
         trials,
     };
     let write = |name: &str, bytes: &[u8]| {
-        write_atomic(&dir.join(name), bytes)
-            .with_context(|| format!("writing {}", dir.join(name).display()))
+        write_atomic(&dir.join(name), bytes).map_err(|source| SummaryError::Write {
+            file: dir.join(name),
+            source,
+        })
     };
     write(
         "results.json",
@@ -257,7 +340,9 @@ pub fn summarize(dir: &Path) -> anyhow::Result<Summary> {
             // Nothing finished yet: no figure, the table says so.
             (Err(dips_plot::PlotError::Empty(_)), _) | (_, Err(dips_plot::PlotError::Empty(_))) => {
             }
-            (Err(e), _) | (_, Err(e)) => return Err(e).context(format!("drawing {name}")),
+            (Err(source), _) | (_, Err(source)) => {
+                return Err(SummaryError::Draw { name, source });
+            }
         }
     }
     Ok(summary)
@@ -325,25 +410,69 @@ fn fmt_opt(v: Option<f64>, digits: usize) -> String {
     v.map_or_else(|| "–".to_string(), |x| format!("{x:.digits$}"))
 }
 
-/// Sentences naming what a summary lacks: each method with fewer finished trials than
-/// `asked` (default: the trials `eval.json` holds), so a summary of part of an evaluation
-/// never passes for the whole. Empty when every trial is there.
-pub fn shortfall(s: &Summary, asked: Option<usize>) -> Vec<String> {
+/// What a summary lacks ([`shortfall`]).
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum Shortfall {
+    /// More trials per method were asked of the summary than the evaluation was run for.
+    MoreAsked {
+        /// The trials asked of the summary.
+        asked: usize,
+        /// The trials per method `eval.json` holds.
+        recorded: usize,
+    },
+    /// A method has fewer finished trials than expected.
+    Unfinished {
+        /// The method.
+        method: String,
+        /// Its finished trials.
+        finished: usize,
+        /// The trials expected.
+        expected: usize,
+    },
+}
+
+impl std::fmt::Display for Shortfall {
+    /// One sentence: what is asked, what there is, and what the summary covers.
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Self::MoreAsked { asked, recorded } => write!(
+                f,
+                "{asked} trials asked for: this evaluation was asked for {recorded} trials per \
+                 method (eval.json); the summary covers those (run the evaluation to add the \
+                 rest)"
+            ),
+            Self::Unfinished {
+                method,
+                finished,
+                expected,
+            } => write!(
+                f,
+                "{method}: {finished} of {expected} trials finished; the summary covers those \
+                 {finished}"
+            ),
+        }
+    }
+}
+
+/// What a summary lacks: each method with fewer finished trials than `asked` (default: the
+/// trials `eval.json` holds), so a summary of part of an evaluation never passes for the
+/// whole. Empty when every trial is there.
+pub fn shortfall(s: &Summary, asked: Option<usize>) -> Vec<Shortfall> {
     let expected = asked.unwrap_or(s.eval.trials);
     let mut lines = Vec::new();
     if expected > s.eval.trials {
-        lines.push(format!(
-            "--trials {expected}: this evaluation was asked for {} trials per method (eval.json); \
-             the summary covers those (run without --summarize-only to add the rest)",
-            s.eval.trials
-        ));
+        lines.push(Shortfall::MoreAsked {
+            asked: expected,
+            recorded: s.eval.trials,
+        });
     }
     for m in &s.methods {
         if m.trials < expected {
-            lines.push(format!(
-                "{}: {} of {expected} trials finished; the summary covers those {}",
-                m.method, m.trials, m.trials
-            ));
+            lines.push(Shortfall::Unfinished {
+                method: m.method.clone(),
+                finished: m.trials,
+                expected,
+            });
         }
     }
     lines
@@ -452,7 +581,7 @@ pub fn markdown(s: &Summary) -> String {
             out.push_str(".\n");
         }
     }
-    let missing = shortfall(s, None);
+    let missing: Vec<String> = shortfall(s, None).iter().map(ToString::to_string).collect();
     if !missing.is_empty() {
         out.push_str(&format!("\nNot finished: {}.\n", missing.join("; ")));
     }

@@ -8,8 +8,9 @@ use dips_batch::{ProgressMode, Shard};
 use dips_eval::report::{EpisodeReports, ReportOptions, median_trial, write_report};
 use dips_eval::{EvalSettings, run_eval, summarize};
 use dips_host::online::{Method, OnlineSettings, SearchDepth};
-use dips_host::planning::{default_models_dir, parse_sampler};
+use dips_host::planning::default_models_dir;
 use dips_host::scenes::SceneKind;
+use dips_kernel::diffusion::SamplerConfig;
 use dips_kernel::mode::Task;
 use dips_kernel::search::{CostToCome, SearchConfig, SearchOverrides};
 use dips_onnx::EngineKind;
@@ -35,7 +36,7 @@ fn settings(methods: Vec<Method>, trials: usize) -> EvalSettings {
                 node_budget: Some(3),
                 ..SearchOverrides::default()
             },
-            sampler: parse_sampler("ddim:8").unwrap(),
+            sampler: "ddim:8".parse::<SamplerConfig>().unwrap(),
             sequence: None,
             max_modes: Some(1),
             search_depth: None,
@@ -126,7 +127,7 @@ fn a_killed_eval_resumes_without_redoing_episodes() {
 
     // Other settings in the same directory are refused, naming eval.json.
     let mut other = settings(vec![Method::CsvtoSampled], 3);
-    other.online.sampler = parse_sampler("ddpm").unwrap();
+    other.online.sampler = "ddpm".parse::<SamplerConfig>().unwrap();
     let err = run_eval(&other, &dir).unwrap_err().to_string();
     assert!(err.contains("eval.json"), "{err}");
     // So is the other form of the search's cost-to-come than the task's.
@@ -234,7 +235,7 @@ fn shards_in_two_directories_merge_into_one_evaluation() {
     assert_eq!(summarize(&merged).unwrap().trials.len(), 2);
     // A shard run with another sampler is named, with the setting that differs.
     let mut other = settings(vec![Method::CsvtoSampled], 2);
-    other.online.sampler = parse_sampler("ddim:4").unwrap();
+    other.online.sampler = "ddim:4".parse::<SamplerConfig>().unwrap();
     other.stop_after = Some(0); // its eval.json is all the merge reads first
     let odd = root.join("odd");
     run_eval(&other, &odd).unwrap();

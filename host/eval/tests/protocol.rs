@@ -15,8 +15,8 @@ use dips_eval::protocol::{
 use dips_eval::settings::claim_dir;
 use dips_host::hand::{HandKind, TrackerNoise};
 use dips_host::online::{Method, OnlineSettings};
-use dips_host::planning::parse_sampler;
 use dips_host::scenes::SceneKind;
+use dips_kernel::diffusion::SamplerConfig;
 use dips_kernel::search::SearchOverrides;
 use dips_onnx::EngineKind;
 
@@ -57,7 +57,7 @@ fn settings(models: &Path, methods: Vec<Method>, first_seed: u64) -> EvalSetting
                 node_budget: Some(3),
                 ..SearchOverrides::default()
             },
-            sampler: parse_sampler("ddim:8").unwrap(),
+            sampler: "ddim:8".parse::<SamplerConfig>().unwrap(),
             sequence: None,
             max_modes: Some(1),
             search_depth: None,
@@ -155,35 +155,38 @@ fn a_differing_setting_is_refused_with_its_name() {
     let protocol = Protocol::new("p", &s).unwrap();
 
     let mut other = settings(&models, vec![Method::Dips], 10000);
-    other.online.sampler = parse_sampler("ddpm:16").unwrap();
+    other.online.sampler = "ddpm:16".parse::<SamplerConfig>().unwrap();
     let err = protocol.check_settings(&other).unwrap_err();
     assert!(
         matches!(&err, ProtocolError::Differs { setting, protocol, run }
-            if setting == "--sampler" && protocol == "\"ddim:8\"" && run == "\"ddpm:16\""),
+            if setting == "episode.sampler" && protocol == "\"ddim:8\"" && run == "\"ddpm:16\""),
         "{err}"
     );
     assert_eq!(
         err.to_string(),
-        "--sampler is \"ddim:8\" in the protocol and \"ddpm:16\" in this run"
+        "episode.sampler is \"ddim:8\" in the protocol and \"ddpm:16\" in this run"
     );
 
     let mut other = settings(&models, vec![Method::Dips], 10000);
     other.online.search.node_budget = Some(4);
     let err = protocol.check_settings(&other).unwrap_err().to_string();
-    assert_eq!(err, "--node-budget is 3 in the protocol and 4 in this run");
+    assert_eq!(
+        err,
+        "episode.node_budget is 3 in the protocol and 4 in this run"
+    );
 
     let other = settings(&models, vec![Method::Dips], 10001);
     let err = protocol.check_settings(&other).unwrap_err().to_string();
-    assert!(err.starts_with("--first-seed is 10000"), "{err}");
+    assert!(err.starts_with("first_seed is 10000"), "{err}");
 
     let other = settings(&models, vec![Method::Dips, Method::DipsK1], 10000);
     let err = protocol.check_settings(&other).unwrap_err().to_string();
-    assert!(err.starts_with("--methods is [\"dips\"]"), "{err}");
+    assert!(err.starts_with("methods is [\"dips\"]"), "{err}");
 
     let mut other = settings(&models, vec![Method::Dips], 10000);
     other.trials = 4;
     let err = protocol.check_settings(&other).unwrap_err().to_string();
-    assert!(err.starts_with("--trials is 3"), "{err}");
+    assert!(err.starts_with("trials is 3"), "{err}");
 
     // The same models elsewhere: the path is not a setting, the hashes are.
     let moved = scratch("differs-moved");
@@ -419,7 +422,10 @@ fn a_committed_registration_spends_its_range_and_is_never_overwritten() {
     assert!(err.contains("holds the registered results"), "{err}");
     assert!(err.contains("this run is rerun"), "{err}");
     let err = claim_dir(&results, &s).unwrap_err().to_string();
-    assert!(err.contains("without --protocol"), "{err}");
+    assert!(
+        err.contains("a run without a protocol would mix into them"),
+        "{err}"
+    );
     assert_eq!(
         dips_eval::protocol::read_registration(&results).unwrap(),
         Some(first)

@@ -16,6 +16,6 @@ mod remote;
 mod target;
 mod transport;
 
-pub use remote::RemotePlanner;
-pub use target::{FIRMWARE_ENV, KernelTarget, find_firmware};
+pub use remote::{RemoteError, RemotePlanner};
+pub use target::{FIRMWARE_ENV, KernelTarget, KernelTargetError, NoFirmware, find_firmware};
 pub use transport::{Link, LinkError, Timeouts, request_name};

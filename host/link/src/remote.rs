@@ -1,24 +1,106 @@
 //! Planning calls through a [`Link`]: the models the kernel lacks, the prior and sampler it
 //! needs, then `PlanRequest` and `Status`.
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::time::Duration;
 
-use anyhow::{Context, anyhow, bail};
-use dips_host::planning::{PlanOutcome, PlanService, model_file};
+use dips_host::planning::{PlanCallError, PlanOutcome, PlanService, model_file};
 use dips_kernel::budget::Clock;
 use dips_kernel::mode::{ModeId, Task};
 use dips_kernel::search::SearchStatus;
 use dips_kernel::session::PlanSpec;
 use dips_kernel::task::Objective;
-use dips_kernel::wire_convert::{prior_from_table, settings_from_sampler, table_from_prior};
-use dips_onnx::{Expectation, Role, lower_file};
+use dips_kernel::wire_convert::{
+    NoSearchStatus, prior_from_table, settings_from_sampler, table_from_prior,
+};
+use dips_onnx::{Expectation, ModelError, Role, lower_file};
 use dips_wire::{
     FromKernel, Hello, KernelStatus, LastPlan, ModelIdentity, ModelRole, PlanRequest, PriorTable,
     SamplerSettings, ToKernel, crc32, upload_messages,
 };
 
 use crate::transport::{Link, LinkError};
+
+/// Why a planning call through a kernel over the wire failed. Each message names what the
+/// kernel or the call did and what was expected.
+#[derive(Debug, thiserror::Error)]
+pub enum RemoteError {
+    /// The link failed (the kernel died, stopped answering, or answered out of turn).
+    #[error(transparent)]
+    Link(#[from] LinkError),
+    /// A model could not be lowered for the kernel.
+    #[error("lowering {} for the kernel", file.display())]
+    Lower {
+        /// The `.onnx` file.
+        file: PathBuf,
+        /// Why.
+        #[source]
+        source: ModelError,
+    },
+    /// The kernel did not acknowledge the greeting.
+    #[error("the kernel ({link}) answered Hello with {got}")]
+    Hello {
+        /// The link's name.
+        link: String,
+        /// What it answered.
+        got: String,
+    },
+    /// A model is too large to upload.
+    #[error("the {role:?} model ({bytes} bytes) is too large for the wire")]
+    TooLarge {
+        /// The model's role.
+        role: ModelRole,
+        /// Its size.
+        bytes: usize,
+    },
+    /// The kernel's copy of an uploaded model is not what was sent.
+    #[error("the kernel loaded a {role:?} with another CRC than sent")]
+    Crc {
+        /// The model's role.
+        role: ModelRole,
+    },
+    /// The call's prior is not over its task's modes.
+    #[error("the prior is not over the {task} modes")]
+    PriorModes {
+        /// The task.
+        task: Task,
+    },
+    /// The call's prior would come back from the wire changed.
+    #[error(
+        "the prior does not survive the wire's row renormalisation bit for bit, so the kernel \
+         would plan with another prior"
+    )]
+    PriorBits,
+    /// The sampler's clip cannot be carried.
+    #[error("the sampler's x̂₀ clip is not the default, which the wire cannot carry")]
+    SamplerClip,
+    /// The call's start cannot be carried with its goal.
+    #[error(
+        "this call's start yaw is unwrapped more than π from its goal; the wire's PlanRequest \
+         carries the goal only (plan it in-process)"
+    )]
+    UnwrappedYaw,
+    /// A call for another task than the planner's models.
+    #[error("a {call} plan through a link set up for {models} models")]
+    OtherTask {
+        /// The call's task.
+        call: Task,
+        /// The models' task.
+        models: Task,
+    },
+    /// The kernel's status after a plan names none.
+    #[error("the kernel's status names no last plan after a plan")]
+    NoLastPlan,
+    /// The kernel answered a status that is no search status.
+    #[error("{0}")]
+    Status(#[from] NoSearchStatus),
+}
+
+impl From<RemoteError> for PlanCallError {
+    fn from(e: RemoteError) -> Self {
+        PlanCallError::Remote(Box::new(e))
+    }
+}
 
 /// A kernel over a link, planning with the models of one models directory.
 #[derive(Debug)]
@@ -37,19 +119,24 @@ pub struct RemotePlanner {
 impl RemotePlanner {
     /// Greet the kernel over `link` and lower `denoiser.onnx` and `discriminator.onnx` of
     /// `models_dir` for `task` (uploaded at the first plan, if the kernel lacks them).
-    pub fn new(mut link: Link, models_dir: &Path, task: Task) -> anyhow::Result<Self> {
+    pub fn new(mut link: Link, models_dir: &Path, task: Task) -> Result<Self, RemoteError> {
         let lower = |role| {
             let file = models_dir.join(model_file(role));
             lower_file(&file, &Expectation::new(role, task.name()))
                 .map(|l| l.blob)
-                .with_context(|| format!("lowering {} for the kernel", file.display()))
+                .map_err(|source| RemoteError::Lower { file, source })
         };
         let denoiser = lower(Role::Denoiser)?;
         let discriminator = lower(Role::Discriminator)?;
         let timeout = link.timeouts().reply;
         match link.request(&ToKernel::Hello(Hello::current()), timeout)? {
             FromKernel::HelloAck(_) => {}
-            other => bail!("the kernel ({}) answered Hello with {other:?}", link.name()),
+            other => {
+                return Err(RemoteError::Hello {
+                    link: link.name().to_string(),
+                    got: format!("{other:?}"),
+                });
+            }
         }
         Ok(Self {
             link,
@@ -92,7 +179,7 @@ impl RemotePlanner {
     }
 
     /// Upload each model the kernel does not hold already (same length and CRC-32).
-    fn ensure_models(&mut self) -> anyhow::Result<()> {
+    fn ensure_models(&mut self) -> Result<(), RemoteError> {
         if self.models_checked {
             return Ok(());
         }
@@ -109,11 +196,9 @@ impl RemotePlanner {
                 continue;
             }
             let crc = crc32(blob);
-            let messages = upload_messages(role, blob).ok_or_else(|| {
-                anyhow!(
-                    "the {role:?} model ({} bytes) is too large for the wire",
-                    blob.len()
-                )
+            let messages = upload_messages(role, blob).ok_or(RemoteError::TooLarge {
+                role,
+                bytes: blob.len(),
             })?;
             let timeout = self.link.timeouts().reply;
             for m in messages {
@@ -121,7 +206,7 @@ impl RemotePlanner {
                 match (&m, &reply) {
                     (ToKernel::ModelEnd, FromKernel::ModelLoaded(l)) => {
                         if l.crc32 != crc {
-                            bail!("the kernel loaded a {role:?} with another CRC than sent");
+                            return Err(RemoteError::Crc { role });
                         }
                     }
                     (ToKernel::ModelEnd, other) | (_, other @ FromKernel::ModelLoaded(_)) => {
@@ -138,17 +223,14 @@ impl RemotePlanner {
     }
 
     /// Send `SetPrior` and `SetSampler` when they differ from what the kernel last got.
-    fn ensure_settings(&mut self, spec: &PlanSpec) -> anyhow::Result<()> {
+    fn ensure_settings(&mut self, spec: &PlanSpec) -> Result<(), RemoteError> {
         let table = table_from_prior(spec.task, &spec.prior)
-            .ok_or_else(|| anyhow!("the prior is not over the {} modes", spec.task.name()))?;
+            .ok_or(RemoteError::PriorModes { task: spec.task })?;
         // The kernel renormalises a table's rows; a prior that does not come back bit for
         // bit would plan differently there than here.
         match prior_from_table(&table) {
             Ok((_, back)) if back == spec.prior => {}
-            _ => bail!(
-                "the prior does not survive the wire's row renormalisation bit for bit, so the \
-                 kernel would plan with another prior"
-            ),
+            _ => return Err(RemoteError::PriorBits),
         }
         let timeout = self.link.timeouts().reply;
         if self.sent_prior.as_ref() != Some(&table) {
@@ -160,9 +242,7 @@ impl RemotePlanner {
                 other => return Err(self.unexpected("SetPrior", &other).into()),
             }
         }
-        let sampler = settings_from_sampler(&spec.sampler).ok_or_else(|| {
-            anyhow!("the sampler's x̂₀ clip is not the default, which the wire cannot carry")
-        })?;
+        let sampler = settings_from_sampler(&spec.sampler).ok_or(RemoteError::SamplerClip)?;
         if self.sent_sampler != Some(sampler) {
             match self.link.request(&ToKernel::SetSampler(sampler), timeout)? {
                 FromKernel::Applied => self.sent_sampler = Some(sampler),
@@ -174,14 +254,11 @@ impl RemotePlanner {
 
     /// The plan request of `spec` ([`PlanSpec::to_request`]); an error when the wire cannot
     /// say it (a screwdriver start yaw unwrapped beyond what the goal implies).
-    fn request_of(spec: &PlanSpec) -> anyhow::Result<PlanRequest> {
+    fn request_of(spec: &PlanSpec) -> Result<PlanRequest, RemoteError> {
         if Objective::for_goal(spec.task, &spec.start, spec.goal(), spec.card_goals())
             != Some(spec.objective)
         {
-            bail!(
-                "this call's start yaw is unwrapped more than π from its goal; the wire's \
-                 PlanRequest carries the goal only (plan it in-process)"
-            );
+            return Err(RemoteError::UnwrappedYaw);
         }
         Ok(spec.to_request())
     }
@@ -201,13 +278,23 @@ impl PlanService for RemotePlanner {
         &mut self,
         spec: &PlanSpec,
         _clock: &mut dyn Clock,
-    ) -> anyhow::Result<PlanOutcome> {
+    ) -> Result<PlanOutcome, PlanCallError> {
+        Ok(self.plan_remote(spec)?)
+    }
+
+    fn location(&self) -> String {
+        self.link.name().to_string()
+    }
+}
+
+impl RemotePlanner {
+    /// [`PlanService::plan_call`] with the link's own error.
+    pub fn plan_remote(&mut self, spec: &PlanSpec) -> Result<PlanOutcome, RemoteError> {
         if spec.task != self.task {
-            bail!(
-                "a {} plan through a link set up for {} models",
-                spec.task.name(),
-                self.task.name()
-            );
+            return Err(RemoteError::OtherTask {
+                call: spec.task,
+                models: self.task,
+            });
         }
         self.ensure_models()?;
         self.ensure_settings(spec)?;
@@ -220,11 +307,8 @@ impl PlanService for RemotePlanner {
             FromKernel::PlanReply(r) => r,
             other => return Err(self.unexpected("PlanRequest", &other).into()),
         };
-        let last: LastPlan = self
-            .status()?
-            .last_plan
-            .ok_or_else(|| anyhow!("the kernel's status names no last plan after a plan"))?;
-        let status = SearchStatus::try_from(reply.status).map_err(|e| anyhow!("{e}"))?;
+        let last: LastPlan = self.status()?.last_plan.ok_or(RemoteError::NoLastPlan)?;
+        let status = SearchStatus::try_from(reply.status)?;
         Ok(PlanOutcome {
             status,
             modes: reply.modes.iter().map(|&m| ModeId(m)).collect(),
@@ -238,9 +322,5 @@ impl PlanService for RemotePlanner {
             particles: last.particles,
             effective_particles: last.effective_particles,
         })
-    }
-
-    fn location(&self) -> String {
-        self.link.name().to_string()
     }
 }

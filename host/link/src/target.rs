@@ -8,6 +8,16 @@ use crate::transport::{Link, LinkError};
 /// The environment variable naming the `dips-firmware-sim` binary `spawn` starts.
 pub const FIRMWARE_ENV: &str = "DIPS_FIRMWARE_SIM";
 
+/// A kernel target that is none of the allowed forms ([`KernelTarget::parse`]).
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error("kernel target {given}: {why}expected in-process, spawn, spawn:PATH or tcp://HOST:PORT")]
+pub struct KernelTargetError {
+    /// The target given.
+    pub given: String,
+    /// What is wrong with it beyond not being one of the forms (empty, or ending in `; `).
+    pub why: &'static str,
+}
+
 /// Where planning calls are made.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub enum KernelTarget {
@@ -22,15 +32,18 @@ pub enum KernelTarget {
 impl KernelTarget {
     /// Parse `in-process`, `spawn`, `spawn:PATH` or `tcp://HOST:PORT`; the error names the
     /// allowed forms.
-    pub fn parse(s: &str) -> Result<Self, String> {
-        let allowed = "expected in-process, spawn, spawn:PATH or tcp://HOST:PORT";
+    pub fn parse(s: &str) -> Result<Self, KernelTargetError> {
+        let error = |why| KernelTargetError {
+            given: s.to_string(),
+            why,
+        };
         if s == "in-process" {
             Ok(Self::InProcess)
         } else if s == "spawn" {
             Ok(Self::Spawn(None))
         } else if let Some(path) = s.strip_prefix("spawn:") {
             if path.is_empty() {
-                return Err(format!("--kernel {s}: no path after spawn: ({allowed})"));
+                return Err(error("no path after spawn:; "));
             }
             Ok(Self::Spawn(Some(PathBuf::from(path))))
         } else if let Some(addr) = s.strip_prefix("tcp://") {
@@ -38,13 +51,11 @@ impl KernelTarget {
                 .rsplit_once(':')
                 .is_none_or(|(h, p)| h.is_empty() || p.parse::<u16>().is_err())
             {
-                return Err(format!(
-                    "--kernel {s}: not HOST:PORT after tcp:// ({allowed})"
-                ));
+                return Err(error("not HOST:PORT after tcp://; "));
             }
             Ok(Self::Tcp(addr.to_string()))
         } else {
-            Err(format!("--kernel {s}: {allowed}"))
+            Err(error(""))
         }
     }
 
@@ -60,7 +71,7 @@ impl KernelTarget {
             Self::Spawn(path) => {
                 let exe = match path {
                     Some(p) => p.clone(),
-                    None => find_firmware().map_err(LinkError::Open)?,
+                    None => find_firmware()?,
                 };
                 Link::spawn(&exe, &[]).map(Some)
             }
@@ -87,20 +98,40 @@ impl std::fmt::Display for KernelTarget {
     }
 }
 
+/// Why no `dips-firmware-sim` binary was found ([`find_firmware`]).
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum NoFirmware {
+    /// `$DIPS_FIRMWARE_SIM` names no file.
+    #[error("$DIPS_FIRMWARE_SIM names {}, which is not a file", path.display())]
+    EnvNotAFile {
+        /// The path it names.
+        path: PathBuf,
+    },
+    /// None of the places looked in has the binary.
+    #[error(
+        "no {name} found (tried {}); build it with `cargo build --release -p dips-firmware-sim`, \
+         or set $DIPS_FIRMWARE_SIM, or give the kernel target spawn:PATH",
+        tried.join(", ")
+    )]
+    NotFound {
+        /// The binary's file name.
+        name: String,
+        /// Where it was looked for.
+        tried: Vec<String>,
+    },
+}
+
 /// The `dips-firmware-sim` binary: `$DIPS_FIRMWARE_SIM`, else the one beside this program
 /// (a cargo build puts both in `target/<profile>/`), else one on `PATH`. The error lists
 /// what was tried.
-pub fn find_firmware() -> Result<PathBuf, String> {
+pub fn find_firmware() -> Result<PathBuf, NoFirmware> {
     let name = format!("dips-firmware-sim{}", std::env::consts::EXE_SUFFIX);
     if let Some(p) = std::env::var_os(FIRMWARE_ENV) {
-        let p = PathBuf::from(p);
-        return if p.is_file() {
-            Ok(p)
+        let path = PathBuf::from(p);
+        return if path.is_file() {
+            Ok(path)
         } else {
-            Err(format!(
-                "${FIRMWARE_ENV} names {}, which is not a file",
-                p.display()
-            ))
+            Err(NoFirmware::EnvNotAFile { path })
         };
     }
     let mut tried = Vec::new();
@@ -125,11 +156,7 @@ pub fn find_firmware() -> Result<PathBuf, String> {
         }
         tried.push("every directory on PATH".into());
     }
-    Err(format!(
-        "no {name} found (tried {}); build it with `cargo build --release -p dips-firmware-sim`, \
-         or set ${FIRMWARE_ENV}, or pass --kernel spawn:PATH",
-        tried.join(", ")
-    ))
+    Err(NoFirmware::NotFound { name, tried })
 }
 
 #[cfg(test)]
@@ -160,6 +187,8 @@ mod tests {
             "udp://h:1",
         ] {
             let e = KernelTarget::parse(bad).unwrap_err();
+            assert_eq!(e.given, bad);
+            let e = e.to_string();
             assert!(e.contains("tcp://HOST:PORT"), "{bad}: {e}");
         }
         assert_eq!(KernelTarget::Tcp("h:1".into()).to_string(), "tcp://h:1");

@@ -93,6 +93,9 @@ pub enum LinkError {
     /// The link could not be opened.
     #[error("{0}")]
     Open(String),
+    /// No kernel binary to spawn was found.
+    #[error(transparent)]
+    NoFirmware(#[from] crate::target::NoFirmware),
 }
 
 /// A request's name for messages: the variant, and the model role of an upload.

@@ -5,11 +5,12 @@ use std::path::{Path, PathBuf};
 use std::time::Duration;
 
 use dips_firmware_sim::{FirmwareMemory, serve};
-use dips_host::planning::{Models, PaperSession, PlanOutcome, PlanService, parse_sampler};
+use dips_host::planning::{Models, PaperSession, PlanOutcome, PlanService};
 use dips_host::problems::contract::contract_state;
 use dips_host::scenes::SceneKind;
 use dips_host::world::World;
 use dips_kernel::budget::NoClock;
+use dips_kernel::diffusion::SamplerConfig;
 use dips_kernel::mode::Task;
 use dips_kernel::search::SearchConfig;
 use dips_kernel::session::PlanSpec;
@@ -89,7 +90,7 @@ fn card_spec(models: &Models, seed: u64) -> PlanSpec {
         seed,
         ..SearchConfig::for_task(task)
     };
-    spec.sampler = parse_sampler("ddim:4:1").unwrap();
+    spec.sampler = "ddim:4:1".parse::<SamplerConfig>().unwrap();
     spec.prior = models.prior.expect("the shipped card models have a prior");
     spec.check().unwrap();
     spec

@@ -11,19 +11,54 @@ pub mod coherence;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
-use anyhow::bail;
-use dips_dataset::{Dataset, DemoRecord};
+use dips_dataset::{Dataset, DatasetError, DemoRecord};
 use dips_kernel::diffusion::SamplerConfig;
 use dips_kernel::engine::DenoiserEngine;
 use dips_kernel::mode::Task;
 use dips_kernel::rng::KernelRng;
-use dips_onnx::{AnyEngine, EngineKind};
+use dips_onnx::{AnyEngine, EngineKind, ModelError};
 use serde::Serialize;
 
-use crate::planning::{Models, sample_trajectories};
+use crate::planning::{Models, ModelsError, SampleError, sample_trajectories};
 use crate::scenes::SceneKind;
-use crate::world::World;
+use crate::world::{World, WorldError};
 pub use coherence::{Coherence, Dist, world_state};
+
+/// Why a quality run stopped.
+#[derive(Debug, thiserror::Error)]
+pub enum QualityError {
+    /// The dataset cannot be read.
+    #[error(transparent)]
+    Dataset(#[from] DatasetError),
+    /// The models cannot be loaded.
+    #[error(transparent)]
+    Models(#[from] ModelsError),
+    /// No held-out demo seeds were given.
+    #[error("no held-out demo seeds: quality is measured on demos the models were not trained on")]
+    NoHeldOut,
+    /// The dataset lacks some of the models' held-out demos.
+    #[error("{} holds no demo with seed(s) {seeds:?} (the models' held-out demos)", dir.display())]
+    MissingDemos {
+        /// The dataset directory.
+        dir: PathBuf,
+        /// The seeds it lacks.
+        seeds: Vec<u64>,
+    },
+    /// A model call failed.
+    #[error("{role}: {error:?}")]
+    Engine {
+        /// The model (`denoiser`, `discriminator`).
+        role: &'static str,
+        /// Why.
+        error: ModelError,
+    },
+    /// Sampling failed.
+    #[error(transparent)]
+    Sample(#[from] SampleError),
+    /// The world refused a state or an action of an open-loop execution.
+    #[error(transparent)]
+    World(#[from] WorldError),
+}
 
 /// Settings of a quality run.
 #[derive(Debug, Clone)]
@@ -150,7 +185,7 @@ fn inference_times(
     task: Task,
     batch: usize,
     calls: usize,
-) -> anyhow::Result<Vec<InferenceTime>> {
+) -> Result<Vec<InferenceTime>, QualityError> {
     use dips_kernel::engine::DiscriminatorEngine;
     let mut out = Vec::new();
     let dims = task.dims();
@@ -168,7 +203,7 @@ fn inference_times(
         v[v.len() / 2]
     };
     // The median wall time of `calls` calls after one warm-up call.
-    let time = |call: &mut dyn FnMut() -> anyhow::Result<()>| -> anyhow::Result<f64> {
+    let time = |call: &mut dyn FnMut() -> Result<(), QualityError>| -> Result<f64, QualityError> {
         let mut times = Vec::with_capacity(calls);
         for c in 0..=calls {
             let t0 = Instant::now();
@@ -196,12 +231,18 @@ fn inference_times(
                 &mask[..batch],
                 &mut eps,
             )
-            .map_err(|err| anyhow::anyhow!("denoiser: {err:?}"))
+            .map_err(|error| QualityError::Engine {
+                role: "denoiser",
+                error,
+            })
         })?;
         let mut p = vec![0f32; batch];
         let disc_ms = time(&mut || {
             disc.p_real(batch, &x[..batch * td], &ctx[..batch * f], &mut p)
-                .map_err(|err| anyhow::anyhow!("discriminator: {err:?}"))
+                .map_err(|error| QualityError::Engine {
+                    role: "discriminator",
+                    error,
+                })
         })?;
         for (role, median_ms) in [("denoiser", den_ms), ("discriminator", disc_ms)] {
             out.push(InferenceTime {
@@ -277,7 +318,7 @@ fn held_out(ds: &Dataset, seeds: &[u64], k: usize) -> Held {
 }
 
 /// Score raw trajectories with the discriminator.
-fn score(disc: &mut AnyEngine, x: &[f32], context: &[f32]) -> anyhow::Result<Scores> {
+fn score(disc: &mut AnyEngine, x: &[f32], context: &[f32]) -> Result<Scores, QualityError> {
     use dips_kernel::engine::DiscriminatorEngine;
     let dims = DiscriminatorEngine::dims(disc);
     let td = dims.floats_per_trajectory();
@@ -296,7 +337,10 @@ fn score(disc: &mut AnyEngine, x: &[f32], context: &[f32]) -> anyhow::Result<Sco
             &context[i * f..(i + b) * f],
             &mut p[i..i + b],
         )
-        .map_err(|e| anyhow::anyhow!("discriminator: {e:?}"))?;
+        .map_err(|error| QualityError::Engine {
+            role: "discriminator",
+            error,
+        })?;
         i += b;
     }
     let logit: Vec<f64> = p
@@ -329,7 +373,7 @@ fn sample_like(
     x: &[f32],
     context: &[f32],
     seed: u64,
-) -> anyhow::Result<Vec<f32>> {
+) -> Result<Vec<f32>, SampleError> {
     let dims = task.dims();
     let (td, sd) = (dims.floats(), dims.state_dim);
     let starts: Vec<f32> = x
@@ -383,7 +427,7 @@ fn moving_starts(
 }
 
 /// Execute the joint deltas of `traj` open loop from its row 0 state; returns (progress, valid).
-fn execute(scene: SceneKind, traj: &[f32]) -> anyhow::Result<(f64, bool)> {
+fn execute(scene: SceneKind, traj: &[f32]) -> Result<(f64, bool), WorldError> {
     let task = scene.task();
     let dims = task.dims();
     let (t, d) = (dims.horizon, dims.dim());
@@ -423,16 +467,14 @@ pub fn measure(
     held_out_seeds: &[u64],
     opts: &QualityOptions,
     mut progress: impl FnMut(&str),
-) -> anyhow::Result<QualityReport> {
+) -> Result<QualityReport, QualityError> {
     let task = scene.task();
     let mut ds = dips_dataset::read_dir(data_dir, task)?;
     if opts.drop_modes_after_invalid {
         ds.drop_modes_after_invalid();
     }
     if held_out_seeds.is_empty() {
-        bail!(
-            "no held-out demo seeds: quality is measured on demos the models were not trained on"
-        );
+        return Err(QualityError::NoHeldOut);
     }
     let missing: Vec<u64> = held_out_seeds
         .iter()
@@ -440,10 +482,10 @@ pub fn measure(
         .filter(|s| !ds.demos.iter().any(|d| d.seed == *s))
         .collect();
     if !missing.is_empty() {
-        bail!(
-            "{} holds no demo with seed(s) {missing:?} (the models' held-out demos)",
-            data_dir.display()
-        );
+        return Err(QualityError::MissingDemos {
+            dir: data_dir.to_path_buf(),
+            seeds: missing,
+        });
     }
     let Models {
         denoiser: mut engine,
