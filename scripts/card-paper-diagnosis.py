@@ -3,8 +3,12 @@
 of scripts/card-paper-tuning.sh (seeds 500-509) and the card-paper demos.
 
 Usage: scripts/card-paper-diagnosis.py [DATA_DIR] > docs/results/card/paper-tuning-500-diagnosis.json
+       scripts/card-paper-diagnosis.py --registered > docs/results/card/paper-10300-diagnosis.json
   DATA_DIR: the demos (default target/models-work/data/card-paper, `dips datagen --task card
   --card-goals paper --demos 128`); left out when absent.
+  --registered: the same figures for the registered runs (docs/results/card/paper-10300-seed<S>,
+  paper-10310-seed<S>, paper-code-10300-seed0, capped-10300-seed0: those that exist), without
+  the demos.
 
 The paired differences (DIPS minus each method, from results.json) are computed from the
 committed files; the per-episode figures need the full runs (commit 717570b, or
@@ -37,7 +41,16 @@ def card_y(state):
 
 def episode_figures(results):
     pushes, after_third, counts, first_mode_error, believed = [], [], [], [], []
+    first_status, first_end = {}, []
     for r in results:
+        plans = r.get("plans", [])
+        if plans:
+            # The first call's outcome: Found (a goal node), or the fallback to the node nearest
+            # the goal (Approximate: budget, time or the open list's capacity).
+            status = plans[0]["status"]
+            first_status[status] = first_status.get(status, 0) + 1
+            if plans[0]["expected_terminal_state"][9] is not None:
+                first_end.append(plans[0]["expected_terminal_state"][9] * 100.0)
         ys = []
         n = 0
         for run in r["mode_runs"]:
@@ -71,6 +84,8 @@ def episode_figures(results):
         "one_mode_plans_executed_minus_expected_cm": {"mean": mean(first_mode_error),
                                                       "n": len(first_mode_error)},
         "first_plan_expected_push_length_cm": {"mean": mean(believed), "n": len(believed)},
+        "first_call_status": first_status,
+        "first_plan_expected_end_cm": {"mean": mean(first_end), "n": len(first_end)},
     }
 
 
@@ -92,9 +107,9 @@ def paired(run):
     return out
 
 
-def runs():
+def runs(names):
     out = {}
-    for run in RUNS:
+    for run in names:
         if not os.path.isdir(run):
             continue
         methods = {"paired_dips_minus": paired(run)}
@@ -132,11 +147,20 @@ def demos(data):
     return {f"{b}-{b + 1} cm": {"n": len(v), "mean": mean(v)} for b, v in sorted(bins.items())}
 
 
+REGISTERED = [f"docs/results/card/paper-{first}-seed{seed}"
+              for first in (10300, 10310) for seed in (0, 1, 2)] + [
+              "docs/results/card/paper-code-10300-seed0", "docs/results/card/capped-10300-seed0"]
+
+
 def main():
+    if sys.argv[1:] == ["--registered"]:
+        print(json.dumps({"command": "scripts/card-paper-diagnosis.py --registered",
+                          "runs": runs(REGISTERED)}, indent=1))
+        return
     data = sys.argv[1] if len(sys.argv) > 1 else "target/models-work/data/card-paper"
     report = {
         "command": "scripts/card-paper-diagnosis.py " + data,
-        "runs": runs(),
+        "runs": runs(RUNS),
     }
     if os.path.isdir(data):
         report["demo_push_length_cm_by_start"] = demos(data)
