@@ -8,7 +8,6 @@
 
 use std::path::PathBuf;
 
-use dips_host::planning::{Models, Session};
 use dips_kernel::adapters::{
     DiffusionSegmentSampler, DimField, DimsMismatch, DiscriminatorScorer, SamplerAdapterLayout,
     ScorerAdapterLayout,
@@ -22,6 +21,7 @@ use dips_kernel::search::{ApproximateReason, Planner, SearchConfig, SearchReport
 use dips_kernel::session::{PlanSpec, plan_with_adapters};
 use dips_kernel::wire_convert::{PlanInputs, plan_request};
 use dips_onnx::{AnyEngine, EngineKind, Expectation, Role};
+use dips_planning::{Models, Session};
 use dips_wire::{PlanReply, PlanRequest, PlanStatus, SearchSettings};
 
 /// Small capacities: k ≤ 4, any task's segment.

@@ -5,12 +5,12 @@
 use std::path::PathBuf;
 
 use dips_dataset::PriorFile;
-use dips_host::planning::Models;
 use dips_kernel::diffusion::{SampleRequest, SamplerConfig, SamplerScratch, ScratchLayout, sample};
 use dips_kernel::engine::DenoiserEngine;
 use dips_kernel::mode::Task;
 use dips_kernel::rng::KernelRng;
 use dips_onnx::EngineKind;
+use dips_planning::Models;
 
 fn dir(task: Task) -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR"))
@@ -39,8 +39,8 @@ fn shipped_models_load_on_both_engines_with_their_prior() {
 
 #[test]
 fn the_card_models_say_which_card_goals_they_were_trained_for() {
-    use dips_host::planning::{models_card_goals, resolve_card_goals};
     use dips_kernel::task::CardGoals;
+    use dips_planning::{models_card_goals, resolve_card_goals};
     let paper = dir(Task::Card).with_file_name("card-paper");
     let m = Models::load(EngineKind::Kernel, &paper, Task::Card).unwrap();
     assert_eq!(m.card_goals, Some(CardGoals::Paper));
@@ -172,8 +172,8 @@ fn shipped_denoisers_sample_finite_in_range_trajectories() {
 /// and the fingers that regrasp keep their rows bit for bit.
 #[test]
 fn screwdriver_samples_are_anchored_at_their_start() {
-    use dips_host::planning::sample_trajectories;
     use dips_kernel::adapters::{StartAnchor, segment_dims};
+    use dips_planning::sample_trajectories;
     let task = Task::Screwdriver;
     let anchor = dips_kernel::session::start_anchor(task);
     assert!(anchor.angle.is_some() && anchor.contact_joints);

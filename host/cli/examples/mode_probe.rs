@@ -42,8 +42,7 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{Context, bail};
 use dips_cli::output::line;
-use dips_host::planning::{Models, models_dir, sample_trajectories};
-use dips_host::problems::contract::contract_state;
+use dips_exec::problems::contract::contract_state;
 use dips_kernel::adapters::StartAnchor;
 use dips_kernel::diffusion::SamplerConfig;
 use dips_kernel::diffusion::normalize::normalize_in_place;
@@ -51,6 +50,7 @@ use dips_kernel::engine::DiscriminatorEngine;
 use dips_kernel::mode::{Task, TaskMode};
 use dips_kernel::rng::KernelRng;
 use dips_kernel::session::start_anchor;
+use dips_planning::{Models, models_dir, sample_trajectories};
 
 /// Segments sampled per start state.
 const SAMPLES: usize = 64;
@@ -567,13 +567,13 @@ fn probe_one(
 /// Each joint's `(lower, upper)` limits on the Allegro hand, in the order of the state's
 /// `q_<finger>_<j>` columns; `None` when a column does not name a joint of the hand.
 fn joint_limits(columns: &[impl AsRef<str>]) -> Option<Vec<(f32, f32)>> {
-    let hand = dips_host::kinematics::HandModel::allegro_v4();
+    let hand = dips_world::kinematics::HandModel::allegro_v4();
     columns
         .iter()
         .filter_map(|c| c.as_ref().strip_prefix("q_"))
         .map(|c| {
             let (finger, j) = c.rsplit_once('_')?;
-            let finger = dips_host::kinematics::Finger::from_name(finger)?;
+            let finger = dips_world::kinematics::Finger::from_name(finger)?;
             let (lo, hi) = *hand.joint_limits(finger).get(j.parse::<usize>().ok()?)?;
             Some((lo as f32, hi as f32))
         })

@@ -18,14 +18,14 @@ use std::collections::BTreeMap;
 use std::path::PathBuf;
 
 use anyhow::{Context, bail};
-use dips_host::planning::{Models, PaperSession, PlanService, models_dir};
-use dips_host::problems::contract::contract_state;
+use dips_exec::problems::contract::contract_state;
 use dips_kernel::budget::NoClock;
 use dips_kernel::diffusion::SamplerConfig;
 use dips_kernel::mode::Task;
 use dips_kernel::prior::MarkovPrior;
 use dips_kernel::search::{SearchConfig, SearchVariant};
 use dips_kernel::session::PlanSpec;
+use dips_planning::{Models, PaperSession, PlanService, models_dir};
 
 fn main() -> std::process::ExitCode {
     match probe() {
@@ -137,13 +137,13 @@ fn probe() -> anyhow::Result<()> {
                     spec.executed = (i > 0)
                         .then(|| executed.get(i - 1))
                         .flatten()
-                        .and_then(|m| dips_host::problems::Mode::from_name(task, m).ok())
+                        .and_then(|m| dips_exec::problems::Mode::from_name(task, m).ok())
                         .map(|m| m.id());
                     let out = session.plan_call(&spec, &mut NoClock)?;
                     let first = out
                         .modes
                         .first()
-                        .and_then(|&id| dips_host::problems::Mode::from_id(task, id))
+                        .and_then(|&id| dips_exec::problems::Mode::from_id(task, id))
                         .map_or("none".to_string(), |m| m.name().to_string());
                     chosen.entry(variant).or_default().push(first);
                 }

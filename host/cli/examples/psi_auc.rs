@@ -16,7 +16,6 @@ use std::path::PathBuf;
 
 use anyhow::{Context, bail};
 use dips_dataset::{demo_files, read_demo};
-use dips_host::planning::{Models, models_dir, sample_trajectories};
 use dips_kernel::adapters::StartAnchor;
 use dips_kernel::diffusion::normalize::normalize_in_place;
 use dips_kernel::diffusion::{SamplerConfig, SamplingMethod};
@@ -24,6 +23,7 @@ use dips_kernel::engine::DiscriminatorEngine;
 use dips_kernel::mode::Task;
 use dips_kernel::rng::KernelRng;
 use dips_kernel::session::start_anchor;
+use dips_planning::{Models, models_dir, sample_trajectories};
 use dips_train::discriminator::auc;
 
 fn main() -> std::process::ExitCode {

@@ -16,7 +16,7 @@ use dips_kernel::search::{
 use dips_kernel::session::{PlanSpec, plan_with_adapters};
 use dips_kernel::task::{CardObjective, Objective, ScrewdriverObjective};
 
-use dips_host::planning::StdClock;
+use dips_planning::StdClock;
 use serde_json::json;
 use std::time::{Duration, Instant};
 
@@ -79,7 +79,7 @@ pub struct SearchBenchArgs {
 }
 
 /// Run `dips bench`.
-pub fn run(args: BenchArgs, hands: &dyn dips_host::hand::Hands) -> anyhow::Result<()> {
+pub fn run(args: BenchArgs, hands: &dyn dips_world::hand::Hands) -> anyhow::Result<()> {
     match args.command {
         BenchCommand::Search(a) => search(&a),
         BenchCommand::Inference(a) => super::bench_inference::run(&a),
@@ -224,7 +224,7 @@ fn search(a: &SearchBenchArgs) -> anyhow::Result<()> {
     config
         .validate()
         .with_context(|| "invalid search settings")?;
-    let capacity = dips_host::planning::PAPER_K;
+    let capacity = dips_planning::PAPER_K;
     if a.k == 0 || usize::from(a.k) > capacity {
         bail!(
             "--k {}: the benchmarked planner holds 1 to {capacity} particles per node (its \

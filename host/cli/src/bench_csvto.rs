@@ -12,13 +12,13 @@ use clap::Args;
 use dips_kernel::rng::KernelRng;
 use serde_json::json;
 
-use dips_host::csvto::{Problem, solve};
-use dips_host::execute::{ExecSettings, mode_goal};
-use dips_host::kinematics::HandModel;
-use dips_host::problems::init::default_particles;
-use dips_host::problems::{AllegroProblem, Mode, ProblemSpec};
-use dips_host::scenes::SceneKind;
-use dips_host::world::World;
+use dips_csvto::{Problem, solve};
+use dips_exec::problems::init::default_particles;
+use dips_exec::problems::{AllegroProblem, Mode, ProblemSpec};
+use dips_exec::{ExecSettings, mode_goal};
+use dips_world::kinematics::HandModel;
+use dips_world::scenes::SceneKind;
+use dips_world::world::World;
 
 /// `dips bench csvto`.
 #[derive(Debug, Args)]

@@ -17,11 +17,8 @@ use std::time::Instant;
 
 use anyhow::{Context, anyhow, bail};
 use clap::Args;
+use dips_exec::problems::contract::contract_state;
 use dips_firmware_sim::{Firmware, FirmwareMemory};
-use dips_host::planning::{model_file, models_dir};
-use dips_host::problems::contract::contract_state;
-use dips_host::scenes::SceneKind;
-use dips_host::world::World;
 use dips_kernel::budget::NoClock;
 use dips_kernel::diffusion::SamplerConfig;
 use dips_kernel::mode::Task;
@@ -29,10 +26,13 @@ use dips_kernel::search::{PaperPlanner, SearchOverrides};
 use dips_kernel::session::PlanSpec;
 use dips_kernel::wire_convert::settings_from_sampler;
 use dips_onnx::{Expectation, Role, lower_file};
+use dips_planning::{model_file, models_dir};
 use dips_wire::{
     Frame, FromKernel, Hello, MAX_ENCODED_FRAME_LEN, ModelRole, PlanRequest, ToKernel,
     decode_frame, encode_frame, upload_messages,
 };
+use dips_world::scenes::SceneKind;
+use dips_world::world::World;
 use serde_json::json;
 
 /// `dips bench firmware`.

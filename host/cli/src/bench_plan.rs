@@ -10,11 +10,11 @@ use std::time::Instant;
 use anyhow::anyhow;
 use clap::Args;
 use dips_eval::summary::Stats;
-use dips_host::planning::{Models, PaperSession, StdClock, models_dir};
-use dips_host::problems::contract::contract_state;
-use dips_host::scenes::SceneKind;
-use dips_host::world::World;
+use dips_exec::problems::contract::contract_state;
 use dips_kernel::session::PlanSpec;
+use dips_planning::{Models, PaperSession, StdClock, models_dir};
+use dips_world::scenes::SceneKind;
+use dips_world::world::World;
 use serde_json::json;
 
 use crate::model::{EngineArg, SimdArg};

@@ -8,12 +8,12 @@ use anyhow::Context;
 use clap::{Args, ValueEnum};
 use serde::Serialize;
 
-use dips_host::hand::{Hand, HandError, HandKind, HandOptions, Hands};
-use dips_host::kinematics::HandJoints;
-use dips_host::scenes::SceneKind;
-use dips_host::world::World;
-use dips_host::world::bench::{self, ContactModel};
-use dips_host::world::scripted;
+use dips_world::hand::{Hand, HandError, HandKind, HandOptions, Hands};
+use dips_world::kinematics::HandJoints;
+use dips_world::scenes::SceneKind;
+use dips_world::world::World;
+use dips_world::world::bench::{self, ContactModel};
+use dips_world::world::scripted;
 
 /// The contact model to time.
 #[derive(Debug, Clone, Copy, ValueEnum)]

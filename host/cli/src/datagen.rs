@@ -8,7 +8,7 @@ use anyhow::Context;
 use clap::{Args, Subcommand};
 use dips_batch::ShardSpec;
 use dips_datagen::{DatagenSettings, generate, index};
-use dips_host::scenes::SceneKind;
+use dips_world::scenes::SceneKind;
 
 use crate::search_args::named;
 
@@ -140,8 +140,8 @@ pub fn run(args: DatagenArgs) -> anyhow::Result<()> {
     }
     settings.first_seed = args.first_seed;
     settings.exec.card_goals = args.card_goals.given(task.task())?.unwrap_or_default();
-    settings.sequences = dips_host::execute::SequenceSource::from_name(&args.sequences)
-        .with_context(|| {
+    settings.sequences =
+        dips_exec::SequenceSource::from_name(&args.sequences).with_context(|| {
             format!(
                 "unknown --sequences {:?}; available: {}",
                 args.sequences,

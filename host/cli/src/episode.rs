@@ -1,20 +1,20 @@
 //! `dips episode`: one closed-loop episode of a method, executed on our quasi-static world or,
 //! with `--hand mujoco`, on the MuJoCo hand (`docs/contracts.md` §5; the methods are
-//! `dips_host::online`'s; the planner always models our world).
+//! `dips_planning::online`'s; the planner always models our world).
 
 use std::path::PathBuf;
 
 use anyhow::{Context, bail};
 use clap::Args;
 
-use dips_host::execute::ExecSettings;
-use dips_host::hand::Hands;
-use dips_host::online::{Method, OnlineSettings, run_online};
-use dips_host::planning::{Models, PlanService, models_card_goals, models_dir};
-use dips_host::problems::Mode;
-use dips_host::problems::mode::parse_mode;
-use dips_host::scenes::SceneKind;
+use dips_exec::ExecSettings;
+use dips_exec::problems::Mode;
+use dips_exec::problems::mode::parse_mode;
 use dips_link::{KernelTarget, RemotePlanner};
+use dips_planning::online::{Method, OnlineSettings, run_online};
+use dips_planning::{Models, PlanService, models_card_goals, models_dir};
+use dips_world::hand::Hands;
+use dips_world::scenes::SceneKind;
 
 use crate::model::EngineArg;
 use crate::search_args::{SearchArgs, named};

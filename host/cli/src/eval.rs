@@ -10,10 +10,10 @@ use dips_link::KernelTarget;
 use dips_batch::ShardSpec;
 use dips_eval::protocol::{Protocol, ProtocolFile, RegistrationStatus};
 use dips_eval::{EvalSettings, run_eval_on, summarize};
-use dips_host::hand::Hands;
-use dips_host::online::{Method, OnlineSettings};
-use dips_host::planning::models_dir;
-use dips_host::scenes::SceneKind;
+use dips_planning::models_dir;
+use dips_planning::online::{Method, OnlineSettings};
+use dips_world::hand::Hands;
+use dips_world::scenes::SceneKind;
 
 use crate::model::EngineArg;
 use crate::search_args::named;
@@ -265,7 +265,7 @@ pub fn run(args: EvalArgs, hands: &dyn Hands) -> anyhow::Result<()> {
             );
         }
     }
-    let cores = dips_host::planning::default_threads();
+    let cores = dips_planning::default_threads();
     let jobs = args.jobs.unwrap_or(cores);
     let model_threads = match args.model_threads {
         Some(0) => anyhow::bail!("--model-threads must be at least 1"),
@@ -313,7 +313,7 @@ pub fn run(args: EvalArgs, hands: &dyn Hands) -> anyhow::Result<()> {
         given.map(|e| e.episode.card_goals),
         Some((
             settings.models.as_path(),
-            dips_host::planning::models_card_goals(&settings.models)?.unwrap_or_default(),
+            dips_planning::models_card_goals(&settings.models)?.unwrap_or_default(),
         )),
     )?;
     if let Some(file) = &args.write_protocol {

@@ -9,7 +9,7 @@ use std::path::{Path, PathBuf};
 use anyhow::Context;
 use clap::Args;
 
-use dips_host::hand::{HandKind, HandOptions, TrackerNoise};
+use dips_world::hand::{HandKind, HandOptions, TrackerNoise};
 
 /// The binary that has the MuJoCo hand.
 pub const MUJOCO_BINARY: &str = "dips-mujoco";

@@ -1,7 +1,7 @@
 //! The `dips` command line (`docs/contracts.md` §5). Each command group lives in its own module.
 
 use clap::{Parser, Subcommand};
-use dips_host::hand::{HandKind, Hands, WorldHands};
+use dips_world::hand::{HandKind, Hands, WorldHands};
 
 pub mod batch;
 pub mod bench;

@@ -98,7 +98,7 @@ pub fn threads(given: Option<usize>) -> anyhow::Result<usize> {
     match given {
         Some(0) => anyhow::bail!("--threads must be at least 1"),
         Some(n) => Ok(n),
-        None => Ok(dips_host::planning::default_threads()),
+        None => Ok(dips_planning::default_threads()),
     }
 }
 

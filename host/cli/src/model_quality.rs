@@ -1,5 +1,5 @@
 //! `dips model quality` and `dips model card`: the quality figures of trained models on their
-//! held-out demos (`dips_host::quality`), and the model card that gathers them with the
+//! held-out demos (`dips_planning::quality`), and the model card that gathers them with the
 //! training report.
 
 use std::path::{Path, PathBuf};
@@ -7,10 +7,10 @@ use std::path::{Path, PathBuf};
 use anyhow::{Context, bail};
 use clap::Args;
 use dips_fs::write_atomic;
-use dips_host::planning::models_dir;
-use dips_host::quality::{QualityOptions, QualityReport, markdown, measure};
-use dips_host::scenes::SceneKind;
+use dips_planning::models_dir;
+use dips_planning::quality::{QualityOptions, QualityReport, markdown, measure};
 use dips_train::REPORT_FILE;
+use dips_world::scenes::SceneKind;
 use serde_json::Value;
 
 use crate::model::EngineArg;
@@ -155,7 +155,7 @@ fn card_text(
     } else {
         format!("Models for the {task} task (`--models onnx/models/{name}`)")
     };
-    let goals = match dips_host::planning::models_card_goals(dir)? {
+    let goals = match dips_planning::models_card_goals(dir)? {
         Some(g) => format!(
             " Trained on demos whose card pushes aimed with the `{g}` card goals \
              (`dips.card_goals`; `docs/search.md`, \"The card's goals\"); the planner plans and \

@@ -6,7 +6,7 @@
 //! settings unless flags change them, the prior is the directory's `prior.json` (fitted from
 //! the training data) or else the paper's (`MarkovPrior::paper`), and the start state is the
 //! world's. The
-//! wiring is the shared planning session ([`dips_host::planning::Session`]).
+//! wiring is the shared planning session ([`dips_planning::Session`]).
 
 use std::path::PathBuf;
 use std::time::Instant;
@@ -19,14 +19,12 @@ use dips_kernel::session::PlanSpec;
 use dips_onnx::EngineKind;
 use serde_json::json;
 
-use dips_host::planning::{
-    Models, PaperSession, PlanOutcome, PlanService, ProgressClock, models_dir,
-};
-use dips_host::problems::contract::contract_state;
-use dips_host::scenes::SceneKind;
-use dips_host::world::World;
+use dips_exec::problems::contract::contract_state;
 use dips_kernel::budget::NoClock;
 use dips_link::{KernelTarget, RemotePlanner};
+use dips_planning::{Models, PaperSession, PlanOutcome, PlanService, ProgressClock, models_dir};
+use dips_world::scenes::SceneKind;
+use dips_world::world::World;
 
 /// Which engine runs the models.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
@@ -100,11 +98,11 @@ pub fn search_config(task: Task, args: &PlanArgs) -> anyhow::Result<SearchConfig
     config
         .validate()
         .map_err(|field| anyhow!("{field} (--k, --depth)"))?;
-    if usize::from(config.k) > dips_host::planning::PAPER_K {
+    if usize::from(config.k) > dips_planning::PAPER_K {
         bail!(
             "--k {}: this planner holds at most {} particles per node",
             config.k,
-            dips_host::planning::PAPER_K
+            dips_planning::PAPER_K
         );
     }
     Ok(config)

@@ -9,9 +9,9 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{Context, bail};
 use clap::Args;
-use dips_host::render;
-use dips_host::world::World;
+use dips_report::render;
 use dips_report::{Recording, pictures};
+use dips_world::world::World;
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 
 /// `dips render` arguments.

@@ -9,12 +9,12 @@ use std::str::FromStr;
 
 use clap::Args;
 use clap::builder::{PossibleValue, TypedValueParser};
-use dips_host::online::{Method, SearchDepth};
-use dips_host::scenes::SceneKind;
 use dips_kernel::diffusion::SamplerConfig;
 use dips_kernel::mode::Task;
 use dips_kernel::search::{CostToCome, SearchOverrides};
 use dips_kernel::task::CardGoals;
+use dips_planning::online::{Method, SearchDepth};
+use dips_world::scenes::SceneKind;
 
 /// A domain value that the command line reads with its own `FromStr` (whose error names the
 /// value and the allowed ones) and lists in `--help` by its names.
@@ -79,7 +79,7 @@ impl CardGoalsArgs {
 
     /// The card goals of the run: `--card-goals` (checked by [`Self::given`]), else `fallback`
     /// (a protocol's), resolved against the models' (`(directory, goals)`) by
-    /// [`dips_host::planning::resolve_card_goals`]; a mismatch names the flag and the fix.
+    /// [`dips_planning::resolve_card_goals`]; a mismatch names the flag and the fix.
     pub fn resolve(
         &self,
         task: Task,
@@ -87,7 +87,7 @@ impl CardGoalsArgs {
         models: Option<(&std::path::Path, CardGoals)>,
     ) -> anyhow::Result<CardGoals> {
         let given = self.given(task)?.or(fallback);
-        dips_host::planning::resolve_card_goals(given, models).map_err(|e| {
+        dips_planning::resolve_card_goals(given, models).map_err(|e| {
             anyhow::anyhow!(
                 "--card-goals {}: {e}; give --card-goals {}, or models trained with `dips \
                  datagen --card-goals {}`",
@@ -273,15 +273,17 @@ impl SearchArgs {
         }
     }
 
-    /// `--time-budget-s` as checked seconds ([`dips_host::online::check_time_budget_s`]).
+    /// `--time-budget-s` as checked seconds ([`dips_planning::online::check_time_budget_s`]).
     pub fn time_budget_s(&self) -> anyhow::Result<f64> {
-        Ok(dips_host::online::check_time_budget_s(self.time_budget_s)?)
+        Ok(dips_planning::online::check_time_budget_s(
+            self.time_budget_s,
+        )?)
     }
 
     /// `--time-budget-s` checked, in the kernel's milliseconds
-    /// ([`dips_host::online::time_budget_ms`]).
+    /// ([`dips_planning::online::time_budget_ms`]).
     pub fn time_budget_ms(&self) -> anyhow::Result<u32> {
-        Ok(dips_host::online::time_budget_ms(self.time_budget_s()?))
+        Ok(dips_planning::online::time_budget_ms(self.time_budget_s()?))
     }
 }
 

@@ -22,11 +22,11 @@ use std::path::{Path, PathBuf};
 use clap::{Args, Subcommand};
 use serde::{Deserialize, Serialize};
 
-use dips_host::hand::{Hand, HandKind, HandOptions, Hands, Recorder};
-use dips_host::kinematics::HandModel;
-use dips_host::render;
-use dips_host::scenes::SceneKind;
-use dips_host::world::{ContactReport, ObjectState, StepFlag, World, WorldError, WorldParams};
+use dips_report::render;
+use dips_world::hand::{Hand, HandKind, HandOptions, Hands, Recorder};
+use dips_world::kinematics::HandModel;
+use dips_world::scenes::SceneKind;
+use dips_world::world::{ContactReport, ObjectState, StepFlag, World, WorldError, WorldParams};
 
 /// `dips sim` arguments.
 #[derive(Debug, Args)]
@@ -244,8 +244,8 @@ pub fn task_metric(scene: SceneKind, start: &[f64], state: &[f64]) -> f64 {
     match scene {
         SceneKind::Screwdriver => state[a + 2],
         SceneKind::Card => {
-            let goal = dips_host::scenes::card::goal_from_start(start[a], start[a + 1]);
-            dips_host::scenes::card::distance_to_goal(state[a], state[a + 1], goal)
+            let goal = dips_world::scenes::card::goal_from_start(start[a], start[a + 1]);
+            dips_world::scenes::card::distance_to_goal(state[a], state[a + 1], goal)
         }
     }
 }
@@ -456,7 +456,7 @@ fn run_on(args: &RunArgs, hands: &dyn Hands) -> Result<(), SimCliError> {
     }
     check_limits(&args.commands, &dq, scene, &HandModel::allegro_v4())?;
     let options = HandOptions {
-        noise: dips_host::hand::TrackerNoise::from_flags(args.noise_position, args.noise_rotation)
+        noise: dips_world::hand::TrackerNoise::from_flags(args.noise_position, args.noise_rotation)
             .map_err(anyhow::Error::msg)?,
         seed: args.seed,
     };
@@ -541,7 +541,7 @@ fn run(args: &RunArgs, hands: &dyn Hands) -> Result<(), SimCliError> {
                         traj.max_penetration.push(rep.max_penetration);
                         traj.flags.push(rep.flags);
                     }
-                    Err(dips_host::hand::HandError::World(e)) => {
+                    Err(dips_world::hand::HandError::World(e)) => {
                         traj.error = Some(format!("action {k}: {e}"));
                         failure = Some((k, e));
                         break;

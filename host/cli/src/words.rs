@@ -12,9 +12,9 @@ use dips_eval::protocol::ProtocolError;
 use dips_eval::run::RunError;
 use dips_eval::settings::{EvalFileError, SettingsError};
 use dips_eval::summary::{Shortfall, SummaryError};
-use dips_host::online::{OnlineError, TimeBudgetError};
-use dips_host::planning::ModelsError;
 use dips_link::{LinkError, NoFirmware, RemoteError};
+use dips_planning::ModelsError;
+use dips_planning::online::{OnlineError, TimeBudgetError};
 
 /// The command line's words for `e` (one cause of an error, without its own causes), or
 /// `None` where the library's message is already the command line's.
@@ -76,7 +76,7 @@ fn models(e: &ModelsError) -> Option<String> {
                 .map(|d| d.display().to_string())
                 .collect::<Vec<_>>()
                 .join(", "),
-            dips_host::planning::MODELS_ENV
+            dips_planning::MODELS_ENV
         ),
         ModelsError::TooManySteps { .. } => format!("--{e}"),
         ModelsError::Psi { dir, mismatch } if !mismatch.usable.is_empty() => format!(
@@ -132,7 +132,7 @@ fn eval_settings(e: &SettingsError) -> String {
     match e {
         SettingsError::NoMethods => format!(
             "--methods is empty; available: {}",
-            dips_host::online::Method::NAMES.join(", ")
+            dips_planning::online::Method::NAMES.join(", ")
         ),
         SettingsError::MethodTwice(m) => format!("--methods names {m} twice"),
         SettingsError::NoTrials => "--trials must be at least 1".into(),
@@ -299,7 +299,7 @@ pub fn shortfall(s: &Shortfall) -> String {
 mod tests {
     use std::path::PathBuf;
 
-    use dips_host::planning::PsiMismatch;
+    use dips_planning::PsiMismatch;
 
     use super::*;
 
@@ -441,7 +441,7 @@ mod tests {
         use SettingsError as S;
         let all = [
             S::NoMethods,
-            S::MethodTwice(dips_host::online::Method::Dips),
+            S::MethodTwice(dips_planning::online::Method::Dips),
             S::NoTrials,
             S::NoJobs,
             S::NoModelThreads,

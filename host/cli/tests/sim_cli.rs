@@ -155,7 +155,7 @@ fn run_with_log_is_replayable() {
         .output()
         .unwrap();
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    let rep = dips_host::hand::replay(&log).unwrap();
+    let rep = dips_world::hand::replay(&log).unwrap();
     let v: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(&out).unwrap()).unwrap();
     let states: Vec<Vec<f64>> = serde_json::from_value(v["states"].clone()).unwrap();
@@ -174,11 +174,11 @@ fn hand_file_is_loaded_at_run_time() {
     let c = dir.join("cmds.json");
     std::fs::write(&c, r#"{"dq": [[0,0,0,0,0,0,0,0]]}"#).unwrap();
     let good = dir.join("hand.json");
-    std::fs::write(&good, dips_host::kinematics::DEFAULT_HAND_JSON).unwrap();
+    std::fs::write(&good, dips_world::kinematics::DEFAULT_HAND_JSON).unwrap();
     let bad = dir.join("bad_hand.json");
     std::fs::write(
         &bad,
-        dips_host::kinematics::DEFAULT_HAND_JSON
+        dips_world::kinematics::DEFAULT_HAND_JSON
             .replace("\"tip_radius\": 0.015", "\"tip_radius\": 0"),
     )
     .unwrap();

@@ -5,7 +5,7 @@
 use std::path::Path;
 
 use dips_dataset::{DatasetError, demo_files, read_demo};
-use dips_host::scenes::SceneKind;
+use dips_world::scenes::SceneKind;
 use serde::{Deserialize, Serialize};
 
 use crate::run::{DatagenError, GIT_REVISION};

@@ -5,7 +5,7 @@
 use std::path::{Path, PathBuf};
 
 use dips_batch::{ShardRecord, read_records, shards_without_record};
-use dips_host::scenes::SceneKind;
+use dips_world::scenes::SceneKind;
 
 use crate::manifest::{Manifest, index};
 use crate::run::{DatagenError, Remedy, demo_path};

@@ -10,14 +10,14 @@
 use std::collections::BTreeMap;
 
 use dips_dataset::DemoRecord;
-use dips_host::execute::{
+use dips_exec::problems::Mode;
+use dips_exec::problems::contract::{contract_dims, to_contract};
+use dips_exec::{
     EpisodeResult, ExecError, ExecSettings, SequenceSource, StepParticles, run_episode_observed,
     sequence_for_seed,
 };
-use dips_host::problems::Mode;
-use dips_host::problems::contract::{contract_dims, to_contract};
-use dips_host::scenes::SceneKind;
-use dips_host::world::World;
+use dips_world::scenes::SceneKind;
+use dips_world::world::World;
 use serde::Serialize;
 
 /// What a demo's episode did (the demo file's `outcome` metadata).
@@ -114,7 +114,7 @@ impl Recorder {
 
 /// Record demo `seed` of `task`: the sequence `sequences` gives that seed
 /// ([`sequence_for_seed`]; with [`SequenceSource::Pattern`] it is
-/// [`prior_sequence_for_seed`](dips_host::execute::prior_sequence_for_seed), executed as `dips episode --method csvto-sampled --seed seed`
+/// [`prior_sequence_for_seed`](dips_exec::prior_sequence_for_seed), executed as `dips episode --method csvto-sampled --seed seed`
 /// executes it: same modes, same states, bit for bit), with every particle of every online
 /// step as a trajectory. `progress` receives the episode's per-step lines.
 pub fn record_demo(

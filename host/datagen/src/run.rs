@@ -9,8 +9,8 @@ use std::time::Instant;
 use dips_batch::{Progress, ProgressMode, Shard};
 use dips_csvto::CsvtoError;
 use dips_dataset::{DatasetError, read_demo, write_demo};
-use dips_host::execute::{ExecError, ExecSettings, SequenceSource};
-use dips_host::scenes::SceneKind;
+use dips_exec::{ExecError, ExecSettings, SequenceSource};
+use dips_world::scenes::SceneKind;
 use rayon::prelude::*;
 
 use crate::manifest::{Manifest, index};

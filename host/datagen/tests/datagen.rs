@@ -8,11 +8,11 @@ use dips_batch::{ProgressMode, Shard};
 use dips_datagen::run::demo_path;
 use dips_datagen::{DatagenError, DatagenSettings, generate, merge, record_demo};
 use dips_dataset::{DemoRecord, read_demo};
-use dips_host::execute::{
+use dips_exec::{
     ExecSettings, SequenceSource, prior_sequence_for_seed, run_episode, sequence_for_seed,
 };
-use dips_host::scenes::SceneKind;
 use dips_kernel::mode::Task;
+use dips_world::scenes::SceneKind;
 
 fn tiny(task: SceneKind, demos: usize) -> DatagenSettings {
     let mut exec = ExecSettings::for_task(task);
@@ -126,7 +126,7 @@ fn a_demo_is_the_episode_of_its_seed_with_every_particle() {
     let (record, outcome) = record_demo(
         SceneKind::Card,
         3,
-        dips_host::execute::SequenceSource::Pattern,
+        dips_exec::SequenceSource::Pattern,
         &s.exec,
         &mut |_| {},
     )

@@ -17,11 +17,11 @@ use std::io::Read;
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
-use dips_host::online::Method;
-use dips_host::planning::{POLICY_DIR, PRIOR_FILE, model_file};
-use dips_host::scenes::SceneKind;
 use dips_kernel::diffusion::SamplerConfig;
 use dips_onnx::Role;
+use dips_planning::online::Method;
+use dips_planning::{POLICY_DIR, PRIOR_FILE, model_file};
+use dips_world::scenes::SceneKind;
 use serde::{Deserialize, Serialize};
 use sha2::{Digest, Sha256};
 

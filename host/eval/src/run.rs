@@ -7,12 +7,12 @@ use std::sync::atomic::{AtomicUsize, Ordering};
 use std::time::Instant;
 
 use dips_batch::{BatchError, Progress, Shard};
+use dips_exec::{EpisodeResult, ExecSettings};
 use dips_fs::write_atomic;
-use dips_host::execute::{EpisodeResult, ExecSettings};
-use dips_host::hand::{HandError, HandKind, HandOptions, Hands, TrackerNoise, WorldHands};
-use dips_host::online::{Method, OnlineError, run_online};
-use dips_host::planning::{Models, ModelsError, PlanService};
 use dips_link::{LinkError, RemoteError, RemotePlanner};
+use dips_planning::online::{Method, OnlineError, run_online};
+use dips_planning::{Models, ModelsError, PlanService};
+use dips_world::hand::{HandError, HandKind, HandOptions, Hands, TrackerNoise, WorldHands};
 use serde::{Deserialize, Serialize};
 
 use crate::settings::{EvalFileError, EvalSettings, SettingsError, claim_dir, episode_dir};

@@ -3,16 +3,16 @@
 use std::path::{Path, PathBuf};
 
 use dips_batch::{ProgressMode, Shard};
-use dips_host::hand::{HandKind, TrackerNoise};
-use dips_host::online::{
-    Method, OnlineSettings, SearchDepth, TimeBudgetError, check_time_budget_s,
-};
-use dips_host::scenes::SceneKind;
 use dips_kernel::name::UnknownValue;
 use dips_kernel::search::CostToCome;
 use dips_kernel::task::CardGoals;
 use dips_link::KernelTarget;
 use dips_onnx::EngineKind;
+use dips_planning::online::{
+    Method, OnlineSettings, SearchDepth, TimeBudgetError, check_time_budget_s,
+};
+use dips_world::hand::{HandKind, TrackerNoise};
+use dips_world::scenes::SceneKind;
 use serde::{Deserialize, Serialize};
 
 /// What makes two episodes of one method and seed the same: a resumed evaluation must agree
@@ -112,7 +112,7 @@ pub struct EvalSettings {
     pub shard: Shard,
     /// Episodes run at once.
     pub jobs: usize,
-    /// Threads of each model call inside an episode ([`dips_host::planning::Models::set_threads`]).
+    /// Threads of each model call inside an episode ([`dips_planning::Models::set_threads`]).
     pub model_threads: usize,
     /// The sampler, the search's settings over the task's, the budgets and the mode limit.
     pub online: OnlineSettings,
@@ -133,7 +133,7 @@ pub struct EvalSettings {
     /// `s`.
     pub tracker_noise: Option<TrackerNoise>,
     /// The card's goals every method executes and plans with (resolved against the models',
-    /// [`dips_host::planning::resolve_card_goals`]).
+    /// [`dips_planning::resolve_card_goals`]).
     pub card_goals: CardGoals,
     /// The run's registration under a protocol (`dips eval --protocol`,
     /// [`crate::protocol::ProtocolFile::register`]), written to `registration.json` when the

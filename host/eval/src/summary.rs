@@ -3,12 +3,12 @@
 
 use std::path::{Path, PathBuf};
 
+use dips_exec::episode::episode_success;
 use dips_fs::write_atomic;
-use dips_host::execute::episode::episode_success;
-use dips_host::scenes::SceneKind;
 use dips_kernel::name::UnknownValue;
 use dips_plot::{BoxPlot, BoxSeries, PlotError};
 use dips_report::EpisodeFile;
+use dips_world::scenes::SceneKind;
 use serde::Serialize;
 
 use crate::protocol::{ProtocolError, Registration, RegistrationStatus, read_registration};
@@ -100,7 +100,7 @@ pub struct Trial {
     pub outcome: Option<f64>,
     /// Whether the object stayed valid (false for an error).
     pub valid: bool,
-    /// Whether the trial succeeded (`dips_host::execute::episode::episode_success`).
+    /// Whether the trial succeeded (`dips_exec::episode::episode_success`).
     pub success: bool,
     /// Executed modes.
     pub modes: Vec<String>,

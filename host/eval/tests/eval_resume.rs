@@ -7,13 +7,13 @@ use std::path::PathBuf;
 use dips_batch::{ProgressMode, Shard};
 use dips_eval::report::{EpisodeReports, ReportOptions, median_trial, write_report};
 use dips_eval::{EvalSettings, run_eval, summarize};
-use dips_host::online::{Method, OnlineSettings, SearchDepth};
-use dips_host::planning::default_models_dir;
-use dips_host::scenes::SceneKind;
 use dips_kernel::diffusion::SamplerConfig;
 use dips_kernel::mode::Task;
 use dips_kernel::search::{CostToCome, SearchConfig, SearchOverrides};
 use dips_onnx::EngineKind;
+use dips_planning::default_models_dir;
+use dips_planning::online::{Method, OnlineSettings, SearchDepth};
+use dips_world::scenes::SceneKind;
 
 fn scratch(name: &str) -> PathBuf {
     let d = std::env::temp_dir().join(format!("dips-eval-{name}-{}", std::process::id()));

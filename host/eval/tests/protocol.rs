@@ -13,12 +13,12 @@ use dips_eval::protocol::{
     claim_registration, sha256_bytes,
 };
 use dips_eval::settings::claim_dir;
-use dips_host::hand::{HandKind, TrackerNoise};
-use dips_host::online::{Method, OnlineSettings};
-use dips_host::scenes::SceneKind;
 use dips_kernel::diffusion::SamplerConfig;
 use dips_kernel::search::SearchOverrides;
 use dips_onnx::EngineKind;
+use dips_planning::online::{Method, OnlineSettings};
+use dips_world::hand::{HandKind, TrackerNoise};
+use dips_world::scenes::SceneKind;
 
 fn scratch(name: &str) -> PathBuf {
     let d = std::env::temp_dir().join(format!("dips-protocol-{name}-{}", std::process::id()));

@@ -13,11 +13,11 @@ use super::mode_run::{
     ExecError, ModeRun, StepParticles, pose_valid, run_mode_observed, true_hand_state,
 };
 use super::settings::ExecSettings;
-use crate::hand::Hand;
-use crate::kinematics::HandModel;
 use crate::problems::Mode;
-use crate::scenes::{SceneKind, card};
-use crate::world::World;
+use dips_world::hand::Hand;
+use dips_world::kinematics::HandModel;
+use dips_world::scenes::{SceneKind, card};
+use dips_world::world::World;
 
 /// Modes per screwdriver episode (sim).
 pub const SCREWDRIVER_MODES: usize = 7;

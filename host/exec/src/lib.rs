@@ -1,13 +1,17 @@
-//! Closed-loop CSVTO execution in the quasi-static world (spec `algorithms.md` §1.3): per
-//! contact mode a warm-up solve, then one re-solve per executed step on the shrinking
-//! horizon, executing `q_cmd = q + Δq₀` of the best particle.
+//! `dips-exec`: the multi-finger problems and their closed-loop execution with CSVTO, on any
+//! [`Hand`](dips_world::hand::Hand) (spec `algorithms.md` §1.3, §2): per contact mode a
+//! warm-up solve, then one re-solve per executed step on the shrinking horizon, executing
+//! `q_cmd = q + Δq₀` of the best particle. It knows nothing of the diffusion models or the
+//! planner (`dips-planning` drives it).
 //!
+//! - [`problems`]: the Allegro contact trajectory-optimisation problems CSVTO solves;
 //! - [`settings`]: per-task CSVTO settings (spec §1.6);
-//! - [`mode_run`]: one contact mode executed in the world;
+//! - [`mode_run`]: one contact mode executed on a hand;
 //! - [`episode`]: a sequence of modes (given or drawn from the task's prior) and its result.
 
 pub mod episode;
 pub mod mode_run;
+pub mod problems;
 pub mod settings;
 
 pub use episode::{

@@ -7,13 +7,13 @@ use dips_kernel::task::CardGoals;
 use serde::Serialize;
 
 use super::settings::ExecSettings;
-use crate::csvto::{CsvtoError, Problem, SolveReport, solve};
-use crate::hand::{Hand, HandError, ObjectPose};
-use crate::kinematics::HandModel;
 use crate::problems::init::default_particles;
 use crate::problems::{AllegroProblem, Mode, ProblemError, ProblemSpec};
-use crate::scenes::SceneKind;
-use crate::scenes::{card, screwdriver};
+use dips_csvto::{CsvtoError, Problem, SolveReport, solve};
+use dips_world::hand::{Hand, HandError, ObjectPose};
+use dips_world::kinematics::HandModel;
+use dips_world::scenes::SceneKind;
+use dips_world::scenes::{card, screwdriver};
 
 /// The object goal of `mode` from the raw state `start` (`[q, o]`) with the card's `card`
 /// goals: the kernel's [`dips_kernel::task::mode_goal`], the one definition the search's `J`
@@ -96,7 +96,7 @@ pub struct StepLog {
     pub valid: bool,
     /// The contacts and their forces after the step, where the hand senses them
     /// ([`Hand::contact_readings`]; the simulated world always does); empty otherwise.
-    pub contacts: Vec<crate::world::ContactReport>,
+    pub contacts: Vec<dips_world::world::ContactReport>,
 }
 
 /// One executed mode.

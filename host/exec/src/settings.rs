@@ -1,8 +1,8 @@
 //! Per-task execution settings.
 
-use crate::csvto::{CsvtoError, CsvtoSettings};
-use crate::scenes::SceneKind;
+use dips_csvto::{CsvtoError, CsvtoSettings};
 use dips_kernel::task::CardGoals;
+use dips_world::scenes::SceneKind;
 
 /// Largest constraint violation of a converged warm-up. Screwdriver warm-ups end below it
 /// (all but one in the 10-seed episodes). Every card warm-up ends at 0.44–0.66 (the first

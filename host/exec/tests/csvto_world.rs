@@ -4,13 +4,13 @@
 //! whole-episode statistic always runs at least 10). The file takes about four and a half
 //! minutes on the 2-core machine, most of it the ten 7-mode screwdriver episodes.
 
-use dips_host::execute::{ExecSettings, ModeRun, run_episode, run_mode, sample_prior_sequence};
-use dips_host::kinematics::HandModel;
-use dips_host::problems::Mode;
-use dips_host::problems::allegro::REGRASP_CLEARANCE;
-use dips_host::scenes::SceneKind;
-use dips_host::world::World;
+use dips_exec::problems::Mode;
+use dips_exec::problems::allegro::REGRASP_CLEARANCE;
+use dips_exec::{ExecSettings, ModeRun, run_episode, run_mode, sample_prior_sequence};
 use dips_kernel::rng::KernelRng;
+use dips_world::kinematics::HandModel;
+use dips_world::scenes::SceneKind;
+use dips_world::world::World;
 
 fn seeds() -> u64 {
     std::env::var("DIPS_CSVTO_SEEDS")
@@ -182,7 +182,7 @@ fn prior_sequences_follow_the_task_priors() {
 
 #[test]
 fn given_initial_particles_of_the_wrong_size_are_a_typed_error() {
-    use dips_host::execute::ExecError;
+    use dips_exec::ExecError;
     let hand = HandModel::allegro_v4();
     let mut world = World::new(SceneKind::Screwdriver);
     let settings = ExecSettings::for_task(SceneKind::Screwdriver);

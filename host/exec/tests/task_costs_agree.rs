@@ -3,15 +3,15 @@
 //! term the kernel leaves out is the regrasp target cost `J_r` (it needs the hand's forward
 //! kinematics), which is computed here from the problem's target distances and subtracted.
 
-use dips_host::csvto::Problem;
-use dips_host::execute::mode_goal;
-use dips_host::kinematics::HandModel;
-use dips_host::problems::contract::to_contract;
-use dips_host::problems::init::default_particles;
-use dips_host::problems::{AllegroProblem, ProblemSpec};
-use dips_host::scenes::SceneKind;
+use dips_csvto::Problem;
+use dips_exec::mode_goal;
+use dips_exec::problems::contract::to_contract;
+use dips_exec::problems::init::default_particles;
+use dips_exec::problems::{AllegroProblem, ProblemSpec};
 use dips_kernel::rng::KernelRng;
 use dips_kernel::task::{CardGoals, CostWeights, segment_cost};
+use dips_world::kinematics::HandModel;
+use dips_world::scenes::SceneKind;
 
 /// The task's start state with the object moved off the nominal pose (so a goal that kept
 /// the start's x or θ would differ from one that aims at 0).

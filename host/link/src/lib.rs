@@ -6,10 +6,10 @@
 //! stdin/stdout ([`KernelTarget::Spawn`]) or reached over TCP ([`KernelTarget::Tcp`]); a real
 //! controller would sit behind the same frames on a UART.
 //!
-//! A [`RemotePlanner`] plans through a link as [`dips_host::planning::PlanService`]: it asks
+//! A [`RemotePlanner`] plans through a link as [`dips_planning::PlanService`]: it asks
 //! the kernel's `Status` once and uploads only the models the kernel does not already hold
 //! (same length and CRC-32), sends the prior and the sampler settings when they change, and
-//! answers each call with the same [`dips_host::planning::PlanOutcome`] an in-process session
+//! answers each call with the same [`dips_planning::PlanOutcome`] an in-process session
 //! gives, bit for bit.
 
 mod remote;

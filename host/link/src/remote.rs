@@ -4,7 +4,6 @@
 use std::path::{Path, PathBuf};
 use std::time::Duration;
 
-use dips_host::planning::{PlanCallError, PlanOutcome, PlanService, model_file};
 use dips_kernel::budget::Clock;
 use dips_kernel::mode::{ModeId, Task};
 use dips_kernel::search::SearchStatus;
@@ -14,6 +13,7 @@ use dips_kernel::wire_convert::{
     NoSearchStatus, prior_from_table, settings_from_sampler, table_from_prior,
 };
 use dips_onnx::{Expectation, ModelError, Role, lower_file};
+use dips_planning::{PlanCallError, PlanOutcome, PlanService, model_file};
 use dips_wire::{
     FromKernel, Hello, KernelStatus, LastPlan, ModelIdentity, ModelRole, PlanRequest, PriorTable,
     SamplerSettings, ToKernel, crc32, upload_messages,

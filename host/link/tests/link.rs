@@ -4,11 +4,8 @@
 use std::path::{Path, PathBuf};
 use std::time::Duration;
 
+use dips_exec::problems::contract::contract_state;
 use dips_firmware_sim::{FirmwareMemory, serve};
-use dips_host::planning::{Models, PaperSession, PlanOutcome, PlanService};
-use dips_host::problems::contract::contract_state;
-use dips_host::scenes::SceneKind;
-use dips_host::world::World;
 use dips_kernel::budget::NoClock;
 use dips_kernel::diffusion::SamplerConfig;
 use dips_kernel::mode::Task;
@@ -16,7 +13,10 @@ use dips_kernel::search::SearchConfig;
 use dips_kernel::session::PlanSpec;
 use dips_link::{Link, LinkError, RemotePlanner, Timeouts};
 use dips_onnx::EngineKind;
+use dips_planning::{Models, PaperSession, PlanOutcome, PlanService};
 use dips_wire::{Hello, ToKernel};
+use dips_world::scenes::SceneKind;
+use dips_world::world::World;
 
 fn models_dir(task: Task) -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR"))

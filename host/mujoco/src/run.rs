@@ -256,7 +256,7 @@ pub fn scripted_targets(
     Ok(add_deltas(scene, q, &dq))
 }
 
-/// One CSVTO mode executed closed-loop on a hand ([`dips_host::execute::run_mode`]: a
+/// One CSVTO mode executed closed-loop on a hand ([`dips_exec::run_mode`]: a
 /// re-solve from the measured state at every step, the best particle's first step commanded).
 #[derive(Debug, Clone, Serialize)]
 pub struct ModeFigures {
@@ -287,8 +287,8 @@ pub fn run_csvto_modes(
     seed: u64,
     progress: &mut dyn FnMut(&str),
 ) -> Result<Vec<ModeFigures>, Box<dyn std::error::Error>> {
-    use dips_host::execute::{ExecSettings, run_mode};
-    use dips_host::problems::mode::parse_mode;
+    use dips_exec::problems::mode::parse_mode;
+    use dips_exec::{ExecSettings, run_mode};
     let parsed = modes
         .iter()
         .map(|m| parse_mode(scene, m))

@@ -229,7 +229,7 @@ fn scripted_manipulation_moves_the_objects() {
 }
 
 /// The controller sees only `Hand`: CSVTO's closed-loop `turn` mode (re-solved from the
-/// measured state every step, `dips_host::execute::run_mode`) runs on the MuJoCo hand as on
+/// measured state every step, `dips_exec::run_mode`) runs on the MuJoCo hand as on
 /// our world, and turns the screwdriver clockwise while keeping it valid.
 #[test]
 fn csvto_turn_mode_runs_on_the_mujoco_hand() {

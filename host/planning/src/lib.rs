@@ -1,7 +1,11 @@
-//! The host's planning session: the two models loaded from `.onnx` files (run by tract or by
-//! the kernel interpreter) and planned through the kernel's session builder
+//! `dips-planning`: planning with the diffusion models on the host, and what is built on it.
+//!
+//! The crate root is the planning session: the two models loaded from `.onnx` files (run by
+//! tract or by the kernel interpreter) and planned through the kernel's session builder
 //! ([`dips_kernel::session`]), which `dips plan`, the tests and the DIPS loop share with the
-//! firmware.
+//! firmware. Built on it: [`online`] (the paper's methods: DIPS's plan → diffusion-initialised
+//! CSVTO → replan loop and its ablations, executed by `dips-exec`), [`policy`] (the Diffusion
+//! Policy baseline) and [`quality`] (trained models measured the way the planner uses them).
 //!
 //! A [`Session`] keeps its models, planner and work area across calls, so a replanning loop
 //! builds it once and calls [`Session::plan`] with a new [`PlanSpec`] (start, goal, executed
@@ -10,6 +14,10 @@
 //! Where a plan is made is a [`PlanService`]: the session in this process, or a kernel over
 //! the wire (`dips-link`: `dips-firmware-sim` spawned or reached over TCP). Both answer with
 //! the same [`PlanOutcome`], bit for bit for the same call.
+
+pub mod online;
+pub mod policy;
+pub mod quality;
 
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -111,8 +119,15 @@ pub const PRIOR_FILE: &str = "prior.json";
 /// The environment variable naming a directory with one models directory per task.
 pub const MODELS_ENV: &str = "DIPS_MODELS";
 
-/// The shipped models' directory (`onnx/models`) in the repository this binary was built from.
-const REPO_MODELS: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../onnx/models");
+/// The shipped models' directory (`onnx/models`) in the repository this binary was built from,
+/// spelled `<repo>/host/../onnx/models` as it was before this crate moved to `host/planning/`:
+/// `eval.json` records the models' path, and a resumed evaluation compares it.
+fn repo_models() -> PathBuf {
+    let host = Path::new(env!("CARGO_MANIFEST_DIR"))
+        .parent()
+        .unwrap_or(Path::new(".."));
+    host.join("../onnx/models")
+}
 
 /// The models directory of `task` when none is given: `$DIPS_MODELS/<task>` when the variable
 /// is set, else `onnx/models/<task>` under the current directory, else the shipped models of the
@@ -126,7 +141,7 @@ pub fn default_models_dir(task: Task) -> Result<PathBuf, ModelsError> {
         }
         return Err(ModelsError::EnvNotADirectory { dir });
     }
-    for root in [PathBuf::from("onnx/models"), PathBuf::from(REPO_MODELS)] {
+    for root in [PathBuf::from("onnx/models"), repo_models()] {
         let dir = root.join(task.name());
         if dir.join(model_file(Role::Denoiser)).is_file() {
             return Ok(dir);

@@ -28,21 +28,21 @@ use dips_kernel::search::{SearchConfig, SearchOverrides, SearchVariant};
 use dips_kernel::session::{PlanSpec, SpecError};
 use dips_kernel::task::CardGoals;
 
-use crate::execute::episode::{CARD_MODES, SCREWDRIVER_MODES};
-use crate::execute::{
-    EpisodeResult, ExecError, ExecSettings, ParticleSummary, PlanRecord, hand_state, mode_goal,
-    pose_valid, prior_sequence_for_seed, run_mode, true_hand_state,
-};
-use crate::hand::Hand;
-use crate::kinematics::HandModel;
-use crate::planning::{
+use crate::policy::PolicyError;
+use crate::{
     Models, POLICY_DIR, PaperSession, PlanCallError, PlanService, SampleError, StdClock,
     sample_trajectories,
 };
-use crate::policy::PolicyError;
-use crate::problems::contract::{LayoutError, contract_state, from_contract};
-use crate::problems::{AllegroProblem, Mode, ProblemError, ProblemSpec};
-use crate::scenes::SceneKind;
+use dips_exec::episode::{CARD_MODES, SCREWDRIVER_MODES};
+use dips_exec::problems::contract::{LayoutError, contract_state, from_contract};
+use dips_exec::problems::{AllegroProblem, Mode, ProblemError, ProblemSpec};
+use dips_exec::{
+    EpisodeResult, ExecError, ExecSettings, ParticleSummary, PlanRecord, hand_state, mode_goal,
+    pose_valid, prior_sequence_for_seed, run_mode, true_hand_state,
+};
+use dips_world::hand::Hand;
+use dips_world::kinematics::HandModel;
+use dips_world::scenes::SceneKind;
 
 /// The screwdriver goal of `dips-no-replan` (rad), the paper's.
 pub const NO_REPLAN_YAW_GOAL: f32 = -1.7;

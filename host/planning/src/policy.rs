@@ -18,13 +18,13 @@ use dips_kernel::engine::DenoiserEngine;
 use dips_kernel::rng::KernelRng;
 use dips_onnx::AnyEngine;
 
-use crate::execute::episode::{EpisodeResult, SCREWDRIVER_SUCCESS_YAW};
-use crate::execute::mode_run::command_deltas;
-use crate::execute::{ExecSettings, ModeRun, StepLog, hand_state, pose_valid, true_hand_state};
-use crate::hand::{Hand, HandError};
-use crate::planning::{SampleError, sample_trajectories};
-use crate::problems::contract::contract_state;
-use crate::scenes::SceneKind;
+use crate::{SampleError, sample_trajectories};
+use dips_exec::episode::{EpisodeResult, SCREWDRIVER_SUCCESS_YAW};
+use dips_exec::mode_run::command_deltas;
+use dips_exec::problems::contract::contract_state;
+use dips_exec::{ExecSettings, ModeRun, StepLog, hand_state, pose_valid, true_hand_state};
+use dips_world::hand::{Hand, HandError};
+use dips_world::scenes::SceneKind;
 
 /// The name of the policy's runs in `result.json`'s `modes`.
 pub const POLICY_RUN: &str = "policy";

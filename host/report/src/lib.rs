@@ -1,6 +1,6 @@
 //! `dips-report`: pictures of dips for people. An episode (`result.json`) or a `dips sim run`
 //! trajectory becomes a [`Recording`] of world states; from it come a three-view drawing of
-//! any state ([`pictures::frame_figure`]), a GIF animation ([`pictures::write_animation`]),
+//! any state ([`render`], [`pictures::frame_figure`]), a GIF animation ([`pictures::write_animation`]),
 //! plots over time ([`pictures::timeline`]), a 3D scene a person can turn
 //! ([`scene3d`]) and a self-contained `report.html` ([`write_episode_report`]; the
 //! evaluation's page is built by `dips-eval` with [`html`]).
@@ -8,6 +8,7 @@
 pub mod html;
 pub mod pictures;
 pub mod recording;
+pub mod render;
 pub mod scene3d;
 
 use std::path::Path;

@@ -3,13 +3,13 @@
 
 use std::path::Path;
 
-use dips_host::execute::episode::SCREWDRIVER_SUCCESS_YAW;
-use dips_host::kinematics::Finger;
-use dips_host::problems::allegro::REGRASP_CLEARANCE;
-use dips_host::render::{self, Overlay};
-use dips_host::scenes::SceneKind;
-use dips_host::world::World;
+use crate::render::{self, Overlay};
+use dips_exec::episode::SCREWDRIVER_SUCCESS_YAW;
+use dips_exec::problems::allegro::REGRASP_CLEARANCE;
 use dips_plot::{GifWriter, SceneFigure, Series, SeriesStyle, TimePanel, Timeline};
+use dips_world::kinematics::Finger;
+use dips_world::scenes::SceneKind;
+use dips_world::world::World;
 use nalgebra::Point3;
 
 use crate::recording::Recording;

@@ -3,10 +3,10 @@
 
 use std::path::Path;
 
-use dips_host::problems::mode::parse_mode;
-use dips_host::render::Goal;
-use dips_host::scenes::SceneKind;
-use dips_host::world::ContactReport;
+use crate::render::Goal;
+use dips_exec::problems::mode::parse_mode;
+use dips_world::scenes::SceneKind;
+use dips_world::world::ContactReport;
 use serde::Deserialize;
 
 use crate::ReportError;

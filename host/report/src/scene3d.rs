@@ -7,10 +7,10 @@
 //! base64 (the page inflates it with the browser's `DecompressionStream`), with the viewer
 //! (`scene3d.js`), so the page works offline from a `file://` URL.
 
-use dips_host::geometry::PartShape;
-use dips_host::kinematics::Finger;
-use dips_host::scenes::{SceneKind, card, screwdriver};
-use dips_host::world::World;
+use dips_world::geometry::PartShape;
+use dips_world::kinematics::Finger;
+use dips_world::scenes::{SceneKind, card, screwdriver};
+use dips_world::world::World;
 use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion, Vector3};
 use serde::Serialize;
 
@@ -35,7 +35,7 @@ pub const VIEWER_JS: &str = include_str!("scene3d.js");
 pub const DATA_ID: &str = "dips-scene-data";
 
 /// Metres of force arrow per newton in the 3D view: ten times the three-view drawings'
-/// (`dips_host::render::FORCE_SCALE`), since the fingers' forces are mostly 0.05–0.5 N and a
+/// (`crate::render::FORCE_SCALE`), since the fingers' forces are mostly 0.05–0.5 N and a
 /// millimetre-long arrow is lost in a view that turns.
 pub const FORCE_SCALE_3D: f64 = 0.05;
 
@@ -80,7 +80,7 @@ pub struct FingerData {
     pub color: String,
 }
 
-/// A part of the object or the table in its body's frame (as `dips_host::geometry::PartShape`).
+/// A part of the object or the table in its body's frame (as `dips_world::geometry::PartShape`).
 #[derive(Debug, Clone, Serialize, PartialEq)]
 #[serde(tag = "shape", rename_all = "lowercase")]
 pub enum PartData {
@@ -396,7 +396,7 @@ mod tests {
                 .map(|(k, state)| Frame {
                     state,
                     contacts: Vec::new(),
-                    goals: vec![dips_host::render::Goal {
+                    goals: vec![crate::render::Goal {
                         coords: [0.0, 0.0, -1.0],
                         label: "mode goal".into(),
                     }],

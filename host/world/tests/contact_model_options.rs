@@ -1,9 +1,9 @@
 //! The contact-model options measured for issue 10 (`docs/world.md`, "Contact without action
 //! at a distance"): prints the table there. A measurement, not a check; run with
-//! `cargo test --release -p dips-host --test contact_model_options -- --ignored --nocapture`.
-use dips_host::kinematics::{Finger, HandModel};
-use dips_host::scenes::{SceneKind, screwdriver};
-use dips_host::world::{
+//! `cargo test --release -p dips-world --test contact_model_options -- --ignored --nocapture`.
+use dips_world::kinematics::{Finger, HandModel};
+use dips_world::scenes::{SceneKind, screwdriver};
+use dips_world::world::{
     CommandProfile, ConeActivation, FrictionModel, World, WorldParams, scripted,
 };
 use nalgebra::{Point3, Vector3};

@@ -1,9 +1,9 @@
 //! Hand I/O: recording a world through the `Hand` trait and replaying the log.
 
-use dips_host::hand::{Hand, HandError, Recorder, replay};
-use dips_host::kinematics::HandJoints;
-use dips_host::scenes::SceneKind;
-use dips_host::world::{World, scripted};
+use dips_world::hand::{Hand, HandError, Recorder, replay};
+use dips_world::kinematics::HandJoints;
+use dips_world::scenes::SceneKind;
+use dips_world::world::{World, scripted};
 
 fn targets_from(world: &World, dq: &[f64]) -> HandJoints {
     let mut t = world.joints();

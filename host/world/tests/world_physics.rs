@@ -1,9 +1,9 @@
 //! Physical checks of the quasi-static world (issue 3, item 7). Run in release.
 
-use dips_host::kinematics::Finger;
-use dips_host::kinematics::HandModel;
-use dips_host::scenes::{SceneKind, screwdriver};
-use dips_host::world::{
+use dips_world::kinematics::Finger;
+use dips_world::kinematics::HandModel;
+use dips_world::scenes::{SceneKind, screwdriver};
+use dips_world::world::{
     CommandProfile, ConeActivation, FrictionModel, ObjectState, StepReport, World, WorldError,
     WorldParams, scripted,
 };
@@ -237,11 +237,11 @@ fn pinch_and_rotate_turns_clockwise() {
 
 #[test]
 fn solver_failure_surfaces_as_error_and_keeps_state() {
-    let mut params = dips_host::world::WorldParams::for_scene(SceneKind::Card);
+    let mut params = dips_world::world::WorldParams::for_scene(SceneKind::Card);
     params.solver_max_iter = 1;
     let mut w = World::with_model(
         SceneKind::Card,
-        dips_host::kinematics::HandModel::allegro_v4(),
+        dips_world::kinematics::HandModel::allegro_v4(),
         params,
     )
     .unwrap();

@@ -7,8 +7,8 @@
 //! force triples of the contact fingers only, the object in problem units.
 
 use super::allegro::AllegroProblem;
-use crate::csvto::Problem;
-use crate::scenes::SceneKind;
+use dips_csvto::Problem;
+use dips_world::scenes::SceneKind;
 
 /// A contract trajectory that does not fit the problem.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
@@ -158,10 +158,10 @@ pub fn from_contract(problem: &AllegroProblem, rows: &[f64]) -> Result<Vec<f64>,
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::kinematics::HandModel;
     use crate::problems::init::default_particles;
     use crate::problems::{Mode, ProblemSpec};
     use dips_kernel::rng::KernelRng;
+    use dips_world::kinematics::HandModel;
 
     fn problem(mode: Mode, yaw: f64) -> AllegroProblem {
         let task = SceneKind::from(mode.task());

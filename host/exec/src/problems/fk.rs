@@ -4,7 +4,7 @@
 use nalgebra::Isometry3;
 
 use super::dual::{M3, Scalar, V3};
-use crate::kinematics::{Finger, HandModel};
+use dips_world::kinematics::{Finger, HandModel};
 
 /// One finger's constant kinematic data, with the hand base folded into the first joint.
 #[derive(Debug, Clone, PartialEq)]
@@ -96,7 +96,7 @@ impl<S: Scalar> Frames<S> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::scenes::SceneKind;
+    use dips_world::scenes::SceneKind;
 
     #[test]
     fn generic_fk_matches_world_kinematics() {

@@ -4,7 +4,7 @@ use dips_kernel::rng::KernelRng;
 
 use super::allegro::{AllegroProblem, pinned_object_coords};
 use super::mode::Mode;
-use crate::csvto::Problem;
+use dips_csvto::Problem;
 
 /// Standard deviation of the initial `Δq` noise.
 pub const DQ_SIGMA: f64 = 0.025;
@@ -83,7 +83,8 @@ pub fn default_particles(
                     }
                 }
                 if problem.has_env_force() {
-                    row[problem.env_col(2)] = crate::scenes::card::MASS * crate::scenes::GRAVITY;
+                    row[problem.env_col(2)] =
+                        dips_world::scenes::card::MASS * dips_world::scenes::GRAVITY;
                 }
             }
             problem.clamp(&mut x);

@@ -3,7 +3,7 @@
 
 pub use dips_kernel::mode::TaskMode as Mode;
 
-use crate::scenes::SceneKind;
+use dips_world::scenes::SceneKind;
 
 /// An unknown mode name for a task.
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]

@@ -6,7 +6,7 @@
 //! subtract the sphere radius for the sphere's signed distance.
 
 use super::dual::{Scalar, V3};
-use crate::scenes::{card, screwdriver};
+use dips_world::scenes::{card, screwdriver};
 
 /// Distance of point `p` (object frame) to the surface and the outward normal.
 #[derive(Debug, Clone, Copy)]

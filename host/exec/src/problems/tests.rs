@@ -6,9 +6,9 @@ use dips_kernel::rng::KernelRng;
 use super::allegro::{AllegroProblem, ProblemSpec};
 use super::init::default_particles;
 use super::mode::Mode;
-use crate::csvto::{CsvtoSettings, Problem, StepConstraints, solve};
-use crate::kinematics::HandModel;
-use crate::scenes::SceneKind;
+use dips_csvto::{CsvtoSettings, Problem, StepConstraints, solve};
+use dips_world::kinematics::HandModel;
+use dips_world::scenes::SceneKind;
 
 fn start_state(task: SceneKind) -> Vec<f64> {
     let q = task.default_joints();
@@ -235,7 +235,7 @@ fn bad_specs_are_typed_errors() {
 /// distances of both agree with the world's parry geometry at turned, shifted object poses.
 #[test]
 fn planner_geometry_matches_the_world_at_moved_object_poses() {
-    use crate::world::World;
+    use dips_world::world::World;
     let hand = HandModel::allegro_v4();
     let cases: [(Mode, [f64; 3]); 4] = [
         (Mode::Turn, [0.04, -0.03, 0.7]),

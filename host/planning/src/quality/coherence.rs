@@ -5,10 +5,10 @@
 use dips_kernel::mode::Task;
 use serde::Serialize;
 
-use crate::kinematics::HandModel;
-use crate::problems::allegro::{PLANNER_FRICTION, REGRASP_CLEARANCE};
-use crate::problems::{AllegroProblem, Mode, ProblemSpec};
-use crate::scenes::SceneKind;
+use dips_exec::problems::allegro::{PLANNER_FRICTION, REGRASP_CLEARANCE};
+use dips_exec::problems::{AllegroProblem, Mode, ProblemSpec};
+use dips_world::kinematics::HandModel;
+use dips_world::scenes::SceneKind;
 
 /// Summary of a distribution.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, serde::Deserialize)]

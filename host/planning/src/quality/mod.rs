@@ -19,10 +19,10 @@ use dips_kernel::rng::KernelRng;
 use dips_onnx::{AnyEngine, EngineKind, ModelError};
 use serde::Serialize;
 
-use crate::planning::{Models, ModelsError, SampleError, sample_trajectories};
-use crate::scenes::SceneKind;
-use crate::world::{World, WorldError};
+use crate::{Models, ModelsError, SampleError, sample_trajectories};
 pub use coherence::{Coherence, Dist, world_state};
+use dips_world::scenes::SceneKind;
+use dips_world::world::{World, WorldError};
 
 /// Why a quality run stopped.
 #[derive(Debug, thiserror::Error)]

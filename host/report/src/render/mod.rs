@@ -3,17 +3,17 @@
 //! (with the screwdriver's yaw marker: a line across its cap along the handle's x axis), the
 //! table, the contacts and their forces, the paths of the fingertips and the object, and the
 //! goal, with a heading and a legend. Drawn by `dips-plot` (plotters) as SVG or PNG, and
-//! frame by frame into an episode's animation (`dips-report`).
+//! frame by frame into an episode's animation ([`crate::pictures`]).
 
 use std::path::Path;
 
 use dips_plot::{LegendEntry, Mark, Rgb, SceneFigure, ScenePanel};
 use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion, Vector3};
 
-use crate::geometry::PartShape;
-use crate::kinematics::Finger;
-use crate::scenes::{SceneKind, card, screwdriver};
-use crate::world::{ContactReport, World};
+use dips_world::geometry::PartShape;
+use dips_world::kinematics::Finger;
+use dips_world::scenes::{SceneKind, card, screwdriver};
+use dips_world::world::{ContactReport, World};
 
 /// Errors writing a drawing.
 #[derive(Debug, thiserror::Error)]

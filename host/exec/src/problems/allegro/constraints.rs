@@ -11,9 +11,9 @@ use super::{
     AllegroProblem, CLEARANCE_MARGIN, MIN_NORMAL_FORCE, PLANNER_FRICTION, PYRAMID_FACES,
     REGRASP_CLEARANCE, StepRows,
 };
-use crate::csvto::{Problem, StepConstraints};
 use crate::problems::dual::{Dual, V3};
-use crate::scenes::{self, SceneKind};
+use dips_csvto::{Problem, StepConstraints};
+use dips_world::scenes::{self, SceneKind};
 
 /// Terms of a contact finger at `s_{t+1}`, over `[q_{t+1}, o_{t+1}, f]`.
 struct NextTerms {

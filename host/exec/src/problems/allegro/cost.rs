@@ -4,10 +4,10 @@
 
 use super::AllegroProblem;
 use super::geometry::seed;
-use crate::csvto::Problem;
 use crate::problems::dual::Dual;
-use crate::scenes::SceneKind;
+use dips_csvto::Problem;
 use dips_kernel::task::CostWeights;
+use dips_world::scenes::SceneKind;
 
 /// The kernel's [`CostWeights`] of a task in `f64` (exact: every weight is an integer).
 #[derive(Debug, Clone, Copy, PartialEq)]

@@ -4,7 +4,7 @@
 use super::AllegroProblem;
 use crate::problems::dual::{Dual, M3, Scalar, V3};
 use crate::problems::sdf;
-use crate::scenes::{self, SceneKind};
+use dips_world::scenes::{self, SceneKind};
 
 /// Object rotation and origin for the object coordinates `o`, given in problem units
 /// (`units[k]` metres or radians per unit).

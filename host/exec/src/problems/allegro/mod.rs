@@ -40,11 +40,11 @@ pub mod rows;
 
 use super::fk::FingerChain;
 use super::mode::Mode;
-use crate::csvto::{Problem, StepConstraints};
-use crate::kinematics::HandModel;
-use crate::scenes::{self, SceneKind};
 use cost::Weights;
+use dips_csvto::{Problem, StepConstraints};
 use dips_kernel::task::CostWeights;
+use dips_world::kinematics::HandModel;
+use dips_world::scenes::{self, SceneKind};
 pub use rows::StepRows;
 
 /// Regrasp clearance δ (m). A regrasping finger keeps it at every step before the last, to

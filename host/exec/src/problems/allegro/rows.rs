@@ -4,7 +4,7 @@
 //! `debug_assert`s after each block, and over every task, mode and step in the tests).
 
 use super::{AllegroProblem, PYRAMID_FACES};
-use crate::scenes::SceneKind;
+use dips_world::scenes::SceneKind;
 
 /// Equality rows of a contact finger: `sdf = 0` (1), rolling (2), joint impedance balance (4).
 pub const CONTACT_EQ_ROWS: usize = 1 + 2 + 4;
