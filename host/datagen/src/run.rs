@@ -2,16 +2,13 @@
 //! kill loses at most the demos in flight), with a progress bar, for one shard of the seeds.
 
 use std::path::{Path, PathBuf};
-use std::sync::Mutex;
-use std::sync::atomic::{AtomicUsize, Ordering};
 use std::time::Instant;
 
-use dips_batch::{Progress, ProgressMode, Shard};
+use dips_batch::{ProgressMode, RunShardError, Shard, ShardRun, run_shard};
 use dips_csvto::CsvtoError;
 use dips_dataset::{DatasetError, read_demo, write_demo};
 use dips_exec::{ExecError, ExecSettings, SequenceSource};
 use dips_world::scenes::SceneKind;
-use rayon::prelude::*;
 
 use crate::manifest::{Manifest, index};
 use crate::record::record_demo;
@@ -274,78 +271,52 @@ pub fn generate(settings: &DatagenSettings, dir: &Path) -> Result<DatagenReport,
             _ => pending.push(seed),
         }
     }
-    if let Some(n) = settings.stop_after {
-        pending.truncate(n);
-    }
-    let skipped = seeds.len() - pending.len().min(seeds.len());
-    if skipped > 0 {
-        dips_batch::progress::note_before(
-            settings.progress,
-            &format!(
-                "resuming: {skipped} of this shard's {} demos are done",
-                seeds.len()
-            ),
-        );
-    }
-    let progress = Progress::new(
-        format!("datagen {} shard {}", settings.task.name(), settings.shard),
-        pending.len() as u64,
-        ("demo", "demos"),
-        settings.progress,
-    );
-    let started = Instant::now();
-    let done = AtomicUsize::new(0);
-    let failure: Mutex<Option<DatagenError>> = Mutex::new(None);
-    let pool = rayon::ThreadPoolBuilder::new()
-        .num_threads(settings.jobs)
-        .build()
-        .map_err(DatagenError::ThreadPool)?;
-    pool.install(|| {
-        pending.par_iter().with_max_len(1).for_each(|&seed| {
-            if failure.lock().map(|f| f.is_some()).unwrap_or(true) {
-                return;
-            }
+    let skipped = seeds.len() - pending.len();
+    let run = ShardRun {
+        label: format!("datagen {} shard {}", settings.task.name(), settings.shard),
+        units: ("demo", "demos"),
+        progress: settings.progress,
+        jobs: settings.jobs,
+        threads_per_job: 1,
+        stop_after: settings.stop_after,
+    };
+    let outcome = run_shard(
+        &run,
+        pending,
+        skipped,
+        |seed| format!("seed {seed}"),
+        |&seed| {
             let t0 = Instant::now();
-            let outcome = record_demo(
+            let (mut record, _) = record_demo(
                 settings.task,
                 seed,
                 settings.sequences,
                 &settings.exec,
                 &mut |_| {},
             )
-            .map_err(|source| DatagenError::Episode { seed, source })
-            .and_then(|(mut record, _)| {
-                record
-                    .metadata
-                    .insert("git_revision".into(), GIT_REVISION.into());
-                record.metadata.insert(
-                    "seconds".into(),
-                    format!("{:.3}", t0.elapsed().as_secs_f64()),
-                );
-                write_demo(&demo_path(dir, settings.task, seed), &record)
-                    .map_err(DatagenError::from)
-            });
-            match outcome {
-                Ok(()) => {
-                    done.fetch_add(1, Ordering::Relaxed);
-                    progress.item_done(Some(&format!("seed {seed}")));
-                }
-                Err(e) => {
-                    if let Ok(mut f) = failure.lock() {
-                        f.get_or_insert(e);
-                    }
-                }
-            }
-        })
-    });
-    progress.finish();
-    if let Some(e) = failure.into_inner().ok().flatten() {
-        // Keep what finished: the manifest lists it, a re-run resumes after it.
-        let _ = index(dir, settings.task);
-        return Err(e);
-    }
-    let generated = done.into_inner();
-    let seconds = started.elapsed().as_secs_f64();
+            .map_err(|source| DatagenError::Episode { seed, source })?;
+            record
+                .metadata
+                .insert("git_revision".into(), GIT_REVISION.into());
+            record.metadata.insert(
+                "seconds".into(),
+                format!("{:.3}", t0.elapsed().as_secs_f64()),
+            );
+            write_demo(&demo_path(dir, settings.task, seed), &record)?;
+            Ok(None)
+        },
+    );
+    let outcome = match outcome {
+        Ok(outcome) => outcome,
+        Err(RunShardError::ThreadPool(e)) => return Err(DatagenError::ThreadPool(e)),
+        Err(RunShardError::Item(e)) => {
+            // Keep what finished: the manifest lists it, a re-run resumes after it.
+            let _ = index(dir, settings.task);
+            return Err(e);
+        }
+    };
+    let generated = outcome.ran;
+    let seconds = outcome.seconds;
     let manifest = index(dir, settings.task)?;
     let report = DatagenReport {
         generated,
@@ -359,14 +330,11 @@ pub fn generate(settings: &DatagenSettings, dir: &Path) -> Result<DatagenReport,
         shard: settings.shard.to_string(),
         manifest,
     };
-    // A run cut short by `stop_after` has not finished its shard.
-    if generated + skipped == seeds.len() {
-        let counts = serde_json::json!({
-            "generated": generated,
-            "skipped": skipped,
-            "seconds_per_demo": report.seconds_per_demo,
-        });
-        dips_batch::write_record(dir, settings.shard, seconds, &counts)?;
-    }
+    let counts = serde_json::json!({
+        "generated": generated,
+        "skipped": skipped,
+        "seconds_per_demo": report.seconds_per_demo,
+    });
+    outcome.record(dir, settings.shard, &counts)?;
     Ok(report)
 }

@@ -2,11 +2,9 @@
 
 use std::io::Write;
 use std::path::{Path, PathBuf};
-use std::sync::Mutex;
-use std::sync::atomic::{AtomicUsize, Ordering};
 use std::time::Instant;
 
-use dips_batch::{BatchError, Progress, Shard};
+use dips_batch::{BatchError, RunShardError, Shard, ShardRun, run_shard};
 use dips_exec::{EpisodeResult, ExecSettings};
 use dips_fs::write_atomic;
 use dips_link::{LinkError, RemoteError, RemotePlanner};
@@ -323,87 +321,44 @@ pub fn run_eval_on(
             .map_err(|e| RunError::Sampler(Box::new(e)))?;
     }
     let episodes = settings.episodes();
-    let mut pending: Vec<(Method, u64)> = episodes
+    let pending: Vec<(Method, u64)> = episodes
         .iter()
         .copied()
         .filter(|(m, s)| !finished(&episode_dir(dir, m.name(), *s)))
         .collect();
     let skipped = episodes.len() - pending.len();
-    if let Some(n) = settings.stop_after {
-        pending.truncate(n);
-    }
-    if skipped > 0 {
-        dips_batch::progress::note_before(
-            settings.progress,
-            &format!(
-                "resuming: {skipped} of this shard's {} episodes are done",
-                episodes.len()
-            ),
-        );
-    }
-    let progress = Progress::new(
-        format!("eval {} shard {}", settings.task.name(), settings.shard),
-        pending.len() as u64,
-        ("episode", "episodes"),
-        settings.progress,
-    );
-    let started = Instant::now();
-    let errors = AtomicUsize::new(0);
-    let failure: Mutex<Option<RunError>> = Mutex::new(None);
     // `jobs` workers take episodes from one queue; the pool has `jobs × model_threads`
     // threads, so an episode's CSVTO (rayon) uses the cores its model calls use.
-    let pool = rayon::ThreadPoolBuilder::new()
-        .num_threads(settings.jobs * settings.model_threads)
-        .build()
-        .map_err(RunError::ThreadPool)?;
-    let queue = Mutex::new(pending.iter().copied());
-    pool.scope(|scope| {
-        for _ in 0..settings.jobs {
-            scope.spawn(|_| {
-                loop {
-                    if failure.lock().map(|f| f.is_some()).unwrap_or(true) {
-                        return;
-                    }
-                    let next = queue.lock().ok().and_then(|mut q| q.next());
-                    let Some((method, seed)) = next else { return };
-                    let ep_dir = episode_dir(dir, method.name(), seed);
-                    let what = format!("{} seed {seed}", method.name());
-                    match run_episode(hands, settings, method, seed, &ep_dir) {
-                        Ok(None) => progress.item_done(Some(&what)),
-                        Ok(Some(e)) => {
-                            errors.fetch_add(1, Ordering::Relaxed);
-                            progress.note(&format!("{what} failed: {e}"));
-                            progress.item_done(Some(&what));
-                        }
-                        Err(e) => {
-                            if let Ok(mut f) = failure.lock() {
-                                f.get_or_insert(e);
-                            }
-                        }
-                    }
-                }
-            });
-        }
-    });
-    progress.finish();
-    if let Some(e) = failure.into_inner().ok().flatten() {
-        return Err(e);
-    }
-    let report = EvalReport {
-        ran: pending.len(),
-        skipped,
-        errors: errors.into_inner(),
-        seconds: started.elapsed().as_secs_f64(),
+    let run = ShardRun {
+        label: format!("eval {} shard {}", settings.task.name(), settings.shard),
+        units: ("episode", "episodes"),
+        progress: settings.progress,
+        jobs: settings.jobs,
+        threads_per_job: settings.model_threads,
+        stop_after: settings.stop_after,
     };
-    // A run cut short by `stop_after` has not finished its shard.
-    if report.ran + report.skipped == episodes.len() {
-        dips_batch::write_record(dir, settings.shard, report.seconds, &report).map_err(
-            |source| RunError::Record {
-                shard: settings.shard,
-                dir: dir.to_path_buf(),
-                source,
-            },
-        )?;
-    }
+    let name = |&(method, seed): &(Method, u64)| format!("{} seed {seed}", method.name());
+    let outcome = run_shard(&run, pending, skipped, name, |&(method, seed)| {
+        let ep_dir = episode_dir(dir, method.name(), seed);
+        Ok(run_episode(hands, settings, method, seed, &ep_dir)?
+            .map(|e| format!("{} failed: {e}", name(&(method, seed)))))
+    })
+    .map_err(|e| match e {
+        RunShardError::ThreadPool(e) => RunError::ThreadPool(e),
+        RunShardError::Item(e) => e,
+    })?;
+    let report = EvalReport {
+        ran: outcome.ran,
+        skipped,
+        errors: outcome.noted,
+        seconds: outcome.seconds,
+    };
+    outcome
+        .record(dir, settings.shard, &report)
+        .map_err(|source| RunError::Record {
+            shard: settings.shard,
+            dir: dir.to_path_buf(),
+            source,
+        })?;
     Ok(report)
 }
