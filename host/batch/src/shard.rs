@@ -56,7 +56,7 @@ impl fmt::Display for Shard {
     }
 }
 
-/// What `--shard` said: a shard given by hand, or `auto` (from the scheduler's environment).
+/// A shard as given: by hand, or `auto` (from the scheduler's environment).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum ShardSpec {
     /// `I/N`.
@@ -143,9 +143,7 @@ impl ShardSpec {
             let index = (id - min) / step;
             let count = match (count_given, number("SLURM_ARRAY_TASK_COUNT")?) {
                 (Some(n), Some(m)) if n != m => {
-                    return Err(ShardEnvError::Inconsistent(format!(
-                        "--shard auto/{n} but SLURM_ARRAY_TASK_COUNT={m}"
-                    )));
+                    return Err(ShardEnvError::CountDiffers { given: n, slurm: m });
                 }
                 (Some(n), _) | (None, Some(n)) => n,
                 (None, None) => return Err(ShardEnvError::Missing("SLURM_ARRAY_TASK_COUNT")),
@@ -177,41 +175,49 @@ impl ShardSpec {
     }
 }
 
-/// Why `--shard auto` found no shard in the environment.
+/// Why the shard `auto` found no shard in the environment.
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
 pub enum ShardEnvError {
     /// Neither Slurm's nor Kubernetes' index is set.
     #[error(
-        "--shard auto: no job array here (neither SLURM_ARRAY_TASK_ID nor JOB_COMPLETION_INDEX is \
-         set); submit it as an array (sbatch --array=0-3) or give --shard I/N"
+        "shard auto: no job array here (neither SLURM_ARRAY_TASK_ID nor JOB_COMPLETION_INDEX is \
+         set); submit it as an array (sbatch --array=0-3) or give the shard as I/N"
     )]
     NoScheduler,
     /// A variable the resolution needs is missing.
-    #[error("--shard auto: {0} is not set; give the count with --shard auto/N")]
+    #[error("shard auto: {0} is not set; give the count as auto/N")]
     Missing(&'static str),
     /// Kubernetes gives the index only.
     #[error(
-        "--shard auto: JOB_COMPLETION_INDEX gives the index only; give the count with --shard \
-         auto/N (the Job's completions)"
+        "shard auto: JOB_COMPLETION_INDEX gives the index only; give the count as auto/N (the \
+         Job's completions)"
     )]
     CountNeeded,
     /// A variable is not a whole number.
-    #[error("--shard auto: {name}={value:?} is not a whole number")]
+    #[error("shard auto: {name}={value:?} is not a whole number")]
     NotANumber {
         /// The variable.
         name: &'static str,
         /// Its value.
         value: String,
     },
+    /// The count given with `auto/N` is not Slurm's.
+    #[error("shard auto/{given} but SLURM_ARRAY_TASK_COUNT={slurm}")]
+    CountDiffers {
+        /// The count given.
+        given: usize,
+        /// Slurm's count.
+        slurm: usize,
+    },
     /// The variables disagree.
-    #[error("--shard auto: {0}")]
+    #[error("shard auto: {0}")]
     Inconsistent(String),
 }
 
-/// Why `--shard` could not be read.
+/// Why a shard (`I/N`, `auto`, `auto/N`) could not be read.
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
 #[error(
-    "--shard {given:?}: {reason}; write I/N with 0 ≤ I < N (e.g. 0/4), auto (Slurm's \
+    "shard {given:?}: {reason}; write I/N with 0 ≤ I < N (e.g. 0/4), auto (Slurm's \
      SLURM_ARRAY_TASK_ID and SLURM_ARRAY_TASK_COUNT) or auto/N (the index from Slurm or \
      JOB_COMPLETION_INDEX)"
 )]

@@ -39,7 +39,12 @@ pub struct BenchSimArgs {
     pub contact_model: ContactModelArg,
     /// `world`: our world's figures; `mujoco`: one action on the MuJoCo hand beside our
     /// world's (through the dips-mujoco binary).
-    #[arg(long, value_name = "HAND", default_value_t = HandKind::World)]
+    #[arg(
+        long,
+        value_name = "HAND",
+        default_value_t = HandKind::World,
+        value_parser = crate::hands::parse_hand
+    )]
     pub hand: HandKind,
 }
 

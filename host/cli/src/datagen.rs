@@ -44,7 +44,7 @@ pub struct DatagenArgs {
     /// takes it from a Slurm array (`SLURM_ARRAY_TASK_ID`, `SLURM_ARRAY_TASK_COUNT`), `auto/N`
     /// the index from Slurm or a Kubernetes Indexed Job (`JOB_COMPLETION_INDEX`) and N given.
     /// Shards may share `--out`; `dips datagen merge` checks that every demo is there.
-    #[arg(long, default_value = "0/1")]
+    #[arg(long, default_value = "0/1", value_parser = crate::batch::parse_shard)]
     pub shard: ShardSpec,
     /// Where the demos' contact sequences come from: `pattern` (the paper's data: screwdriver
     /// turn, then both regrasps in random order, repeated; card uniform) or `markov` (chains

@@ -83,7 +83,7 @@ pub struct EvalArgs {
     /// from a Slurm array (`SLURM_ARRAY_TASK_ID`, `SLURM_ARRAY_TASK_COUNT`), `auto/N` the
     /// index from Slurm or a Kubernetes Indexed Job (`JOB_COMPLETION_INDEX`) and N given.
     /// Shards may share `--out`; `dips eval merge` checks that every episode is there.
-    #[arg(long, default_value = "0/1")]
+    #[arg(long, default_value = "0/1", value_parser = crate::batch::parse_shard)]
     pub shard: ShardSpec,
     /// Models directory (default: the shipped models, `onnx/models/<task>`).
     #[arg(long)]

@@ -20,7 +20,7 @@ pub struct HandArgs {
     /// Which hand executes the actions: `world` (our quasi-static world, the default) or
     /// `mujoco` (MuJoCo 3.17, through the dips-mujoco binary). The planner, the models and
     /// CSVTO's internal model are ours either way; `result.json` records the hand.
-    #[arg(long, value_name = "HAND")]
+    #[arg(long, value_name = "HAND", value_parser = parse_hand)]
     pub hand: Option<HandKind>,
     /// Tracker noise (`--hand mujoco`): position σ (m) of the reported object pose, seeded
     /// with the episode's seed; the outcome is scored on the true pose.
@@ -31,6 +31,12 @@ pub struct HandArgs {
     pub noise_rotation: Option<f64>,
 }
 
+/// `--hand`'s parser: a hand's name, or the command line's words for one that is not
+/// ([`crate::words::unknown_hand`]).
+pub fn parse_hand(s: &str) -> Result<HandKind, String> {
+    s.parse().map_err(|e| crate::words::unknown_hand(&e))
+}
+
 impl HandArgs {
     /// The hand (default: our world).
     pub fn kind(&self) -> HandKind {
@@ -39,11 +45,10 @@ impl HandArgs {
 
     /// The tracker noise of the flags, `None` when both are 0 or absent.
     pub fn noise(&self) -> anyhow::Result<Option<TrackerNoise>> {
-        TrackerNoise::from_flags(
+        Ok(TrackerNoise::new(
             self.noise_position.unwrap_or(0.0),
             self.noise_rotation.unwrap_or(0.0),
-        )
-        .map_err(anyhow::Error::msg)
+        )?)
     }
 
     /// How to open the hand of an episode of `seed`.

@@ -59,7 +59,12 @@ pub struct RunArgs {
     pub out: PathBuf,
     /// Which hand executes the actions: `world` (our quasi-static world) or `mujoco` (the
     /// MuJoCo hand, through the dips-mujoco binary).
-    #[arg(long, value_name = "HAND", default_value_t = HandKind::World)]
+    #[arg(
+        long,
+        value_name = "HAND",
+        default_value_t = HandKind::World,
+        value_parser = crate::hands::parse_hand
+    )]
     pub hand: HandKind,
     /// Optional hand description (default: the built-in Allegro v4 file; our world only).
     #[arg(long, value_name = "FILE")]
@@ -456,8 +461,8 @@ fn run_on(args: &RunArgs, hands: &dyn Hands) -> Result<(), SimCliError> {
     }
     check_limits(&args.commands, &dq, scene, &HandModel::allegro_v4())?;
     let options = HandOptions {
-        noise: dips_world::hand::TrackerNoise::from_flags(args.noise_position, args.noise_rotation)
-            .map_err(anyhow::Error::msg)?,
+        noise: dips_world::hand::TrackerNoise::new(args.noise_position, args.noise_rotation)
+            .map_err(|e| anyhow::Error::msg(crate::words::noise(&e)))?,
         seed: args.seed,
     };
     let mut hand = hands

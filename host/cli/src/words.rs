@@ -6,6 +6,7 @@
 
 use std::error::Error;
 
+use dips_batch::{ShardEnvError, ShardError};
 use dips_datagen::{DatagenError, Remedy};
 use dips_eval::merge::MergeError;
 use dips_eval::protocol::ProtocolError;
@@ -15,6 +16,7 @@ use dips_eval::summary::{Shortfall, SummaryError};
 use dips_link::{LinkError, NoFirmware, RemoteError};
 use dips_planning::ModelsError;
 use dips_planning::online::{OnlineError, TimeBudgetError};
+use dips_world::hand::{BadNoise, HandError, UnknownHand};
 
 /// The command line's words for `e` (one cause of an error, without its own causes), or
 /// `None` where the library's message is already the command line's.
@@ -43,6 +45,14 @@ pub fn of(e: &(dyn Error + 'static)) -> Option<String> {
         }
     } else if let Some(e) = e.downcast_ref::<DatagenError>() {
         datagen(e)
+    } else if let Some(e) = e.downcast_ref::<HandError>() {
+        hand(e)
+    } else if let Some(e) = e.downcast_ref::<BadNoise>() {
+        Some(noise(e))
+    } else if let Some(e) = e.downcast_ref::<ShardEnvError>() {
+        Some(shard_env(e))
+    } else if let Some(e) = e.downcast_ref::<ShardError>() {
+        Some(shard(e))
     } else if let Some(e) = e.downcast_ref::<NoFirmware>() {
         no_firmware(e)
     } else if let Some(e) = e.downcast_ref::<LinkError>() {
@@ -284,6 +294,74 @@ fn datagen(e: &DatagenError) -> Option<String> {
     })
 }
 
+/// `--hand`'s words for a name that is not a hand (a hand description file is `--hand-model`).
+pub fn unknown_hand(e: &UnknownHand) -> String {
+    match e {
+        UnknownHand::Name(_) => e.to_string(),
+        UnknownHand::File(name) => format!(
+            "`{name}` is not a hand (allowed: {}); a hand description file is `--hand-model \
+             FILE`",
+            dips_world::hand::HandKind::ALL.map(|k| k.name()).join(", ")
+        ),
+    }
+}
+
+fn hand(e: &HandError) -> Option<String> {
+    Some(match e {
+        HandError::NoTracker { .. } => "world hand: our world reports the exact object pose; \
+                                        tracker noise (--noise-position, --noise-rotation) \
+                                        needs --hand mujoco"
+            .into(),
+        HandError::NotInBinary { kind } => format!(
+            "world hand: --hand {kind} is not in this binary (it has our world only); run it \
+             through dips-mujoco"
+        ),
+        _ => return None,
+    })
+}
+
+/// `--noise-position` / `--noise-rotation`'s words for a σ below 0.
+pub fn noise(e: &BadNoise) -> String {
+    format!(
+        "--noise-{} {}: a standard deviation must be ≥ 0",
+        e.axis, e.value
+    )
+}
+
+/// `--shard`'s words for a shard that does not read.
+pub fn shard(e: &ShardError) -> String {
+    format!(
+        "--shard {:?}: {}; write I/N with 0 ≤ I < N (e.g. 0/4), auto (Slurm's \
+         SLURM_ARRAY_TASK_ID and SLURM_ARRAY_TASK_COUNT) or auto/N (the index from Slurm or \
+         JOB_COMPLETION_INDEX)",
+        e.given, e.reason
+    )
+}
+
+fn shard_env(e: &ShardEnvError) -> String {
+    match e {
+        ShardEnvError::NoScheduler => "--shard auto: no job array here (neither \
+                                       SLURM_ARRAY_TASK_ID nor JOB_COMPLETION_INDEX is set); \
+                                       submit it as an array (sbatch --array=0-3) or give \
+                                       --shard I/N"
+            .into(),
+        ShardEnvError::Missing(name) => {
+            format!("--shard auto: {name} is not set; give the count with --shard auto/N")
+        }
+        ShardEnvError::CountNeeded => "--shard auto: JOB_COMPLETION_INDEX gives the index only; \
+                                       give the count with --shard auto/N (the Job's \
+                                       completions)"
+            .into(),
+        ShardEnvError::NotANumber { name, value } => {
+            format!("--shard auto: {name}={value:?} is not a whole number")
+        }
+        ShardEnvError::CountDiffers { given, slurm } => {
+            format!("--shard auto: --shard auto/{given} but SLURM_ARRAY_TASK_COUNT={slurm}")
+        }
+        ShardEnvError::Inconsistent(why) => format!("--shard auto: {why}"),
+    }
+}
+
 /// What a summary lacks, in the command line's words (`--trials`, `--summarize-only`).
 pub fn shortfall(s: &Shortfall) -> String {
     match s {
@@ -460,5 +538,93 @@ mod tests {
             let w = of(&e).unwrap();
             assert!(w.starts_with("--"), "{w}");
         }
+    }
+
+    #[test]
+    fn hand_refusals_name_the_hand_flags() {
+        use dips_world::hand::{HandKind, NoiseAxis, TrackerNoise};
+        let e = "host/data/allegro_v4.json".parse::<HandKind>().unwrap_err();
+        let w = unknown_hand(&e);
+        assert!(w.contains("--hand-model FILE"), "{w}");
+        assert!(w.contains("(allowed: world, mujoco)"), "{w}");
+        let e = "isaac".parse::<HandKind>().unwrap_err();
+        assert_eq!(
+            unknown_hand(&e),
+            "unknown hand `isaac` (allowed: world, mujoco)"
+        );
+        let w = of(&HandError::NoTracker {
+            hand: HandKind::World,
+        })
+        .unwrap();
+        assert!(
+            w.contains("tracker noise (--noise-position, --noise-rotation)")
+                && w.ends_with("needs --hand mujoco"),
+            "{w}"
+        );
+        let w = of(&HandError::NotInBinary {
+            kind: HandKind::Mujoco,
+        })
+        .unwrap();
+        assert!(w.contains("--hand mujoco is not in this binary"), "{w}");
+        let e = TrackerNoise::new(0.0, -1.0).unwrap_err();
+        assert_eq!(e.axis, NoiseAxis::Rotation);
+        assert_eq!(
+            of(&e).unwrap(),
+            "--noise-rotation -1: a standard deviation must be ≥ 0"
+        );
+        let e = TrackerNoise::new(f64::NAN, 0.0).unwrap_err();
+        assert!(of(&e).unwrap().starts_with("--noise-position NaN"));
+    }
+
+    #[test]
+    fn shard_refusals_name_the_shard_flag() {
+        use dips_batch::ShardSpec;
+        for bad in ["5/5", "1", "a/2", "0/0", "-1/3", "auto/0", "auto/x"] {
+            let e = bad.parse::<ShardSpec>().unwrap_err();
+            let w = of(&e).unwrap();
+            assert!(
+                w.starts_with(&format!("--shard {bad:?}: ")) && w.contains("I/N"),
+                "{bad}: {w}"
+            );
+        }
+        let auto = |count, vars: &[(&str, &str)]| {
+            let e = ShardSpec::Auto { count }
+                .resolve(&|name| {
+                    vars.iter()
+                        .find(|(k, _)| *k == name)
+                        .map(|(_, v)| v.to_string())
+                })
+                .unwrap_err();
+            of(&e).unwrap()
+        };
+        assert!(auto(None, &[]).ends_with("or give --shard I/N"));
+        assert_eq!(
+            auto(None, &[("SLURM_ARRAY_TASK_ID", "0")]),
+            "--shard auto: SLURM_ARRAY_TASK_COUNT is not set; give the count with --shard auto/N"
+        );
+        assert!(
+            auto(None, &[("JOB_COMPLETION_INDEX", "0")])
+                .contains("give the count with --shard auto/N")
+        );
+        assert_eq!(
+            auto(
+                Some(2),
+                &[
+                    ("SLURM_ARRAY_TASK_ID", "1"),
+                    ("SLURM_ARRAY_TASK_COUNT", "4")
+                ]
+            ),
+            "--shard auto: --shard auto/2 but SLURM_ARRAY_TASK_COUNT=4"
+        );
+        assert!(
+            auto(
+                None,
+                &[
+                    ("SLURM_ARRAY_TASK_ID", "4"),
+                    ("SLURM_ARRAY_TASK_COUNT", "4")
+                ]
+            )
+            .starts_with("--shard auto: SLURM_ARRAY_TASK_ID=4 gives index 4")
+        );
     }
 }

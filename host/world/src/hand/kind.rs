@@ -44,10 +44,24 @@ impl fmt::Display for HandKind {
     }
 }
 
-/// An unknown hand name.
+/// A name that is not a hand.
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
-#[error("{0}")]
-pub struct UnknownHand(String);
+pub enum UnknownHand {
+    /// No hand has this name.
+    #[error("unknown hand `{0}` (allowed: {allowed})", allowed = allowed_hands())]
+    Name(String),
+    /// A file path: a hand description (the kinematic model), which is not a hand kind.
+    #[error(
+        "`{0}` is not a hand (allowed: {allowed}); a hand description file is the hand model",
+        allowed = allowed_hands()
+    )]
+    File(String),
+}
+
+/// The hands' names, as the errors list them (`world, mujoco`).
+fn allowed_hands() -> String {
+    HandKind::ALL.map(HandKind::name).join(", ")
+}
 
 impl FromStr for HandKind {
     type Err = UnknownHand;
@@ -56,17 +70,11 @@ impl FromStr for HandKind {
         if let Some(k) = HandKind::ALL.into_iter().find(|k| k.name() == s) {
             return Ok(k);
         }
-        let allowed = HandKind::ALL.map(HandKind::name).join(", ");
         // `dips sim run --hand FILE` was the hand description before `--hand` named the hand.
         if s.contains('/') || s.contains('\\') || s.ends_with(".json") {
-            return Err(UnknownHand(format!(
-                "`{s}` is not a hand (allowed: {allowed}); a hand description file is \
-                 `--hand-model FILE`"
-            )));
+            return Err(UnknownHand::File(s.to_string()));
         }
-        Err(UnknownHand(format!(
-            "unknown hand `{s}` (allowed: {allowed})"
-        )))
+        Err(UnknownHand::Name(s.to_string()))
     }
 }
 
@@ -80,16 +88,44 @@ pub struct TrackerNoise {
     pub rotation: f64,
 }
 
+/// Which part of the tracker noise ([`TrackerNoise`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum NoiseAxis {
+    /// The position σ.
+    Position,
+    /// The rotation σ.
+    Rotation,
+}
+
+impl fmt::Display for NoiseAxis {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(match self {
+            NoiseAxis::Position => "position",
+            NoiseAxis::Rotation => "rotation",
+        })
+    }
+}
+
+/// A tracker noise σ that is negative or not finite.
+#[derive(Debug, Clone, Copy, PartialEq, thiserror::Error)]
+#[error("tracker noise {axis} σ {value}: a standard deviation must be ≥ 0")]
+pub struct BadNoise {
+    /// Which σ.
+    pub axis: NoiseAxis,
+    /// Its value.
+    pub value: f64,
+}
+
 impl TrackerNoise {
-    /// The noise of `--noise-position` / `--noise-rotation`: `None` when both are 0; an error
-    /// naming the flag when one is negative or not finite.
-    pub fn from_flags(position: f64, rotation: f64) -> Result<Option<TrackerNoise>, String> {
-        for (flag, v) in [
-            ("--noise-position", position),
-            ("--noise-rotation", rotation),
+    /// The noise of a position σ and a rotation σ: `None` when both are 0; an error naming
+    /// the σ when one is negative or not finite.
+    pub fn new(position: f64, rotation: f64) -> Result<Option<TrackerNoise>, BadNoise> {
+        for (axis, value) in [
+            (NoiseAxis::Position, position),
+            (NoiseAxis::Rotation, rotation),
         ] {
-            if !v.is_finite() || v < 0.0 {
-                return Err(format!("{flag} {v}: a standard deviation must be ≥ 0"));
+            if !value.is_finite() || value < 0.0 {
+                return Err(BadNoise { axis, value });
             }
         }
         Ok((position > 0.0 || rotation > 0.0).then_some(TrackerNoise { position, rotation }))
@@ -126,11 +162,8 @@ pub struct WorldHands;
 /// Open our world; the error for tracker noise, which only a simulated tracker has.
 pub fn open_world(scene: SceneKind, options: &HandOptions) -> Result<Box<dyn Hand>, HandError> {
     if options.noise.is_some() {
-        return Err(HandError::Other {
-            hand: "world",
-            message: "our world reports the exact object pose; tracker noise \
-                      (--noise-position, --noise-rotation) needs --hand mujoco"
-                .into(),
+        return Err(HandError::NoTracker {
+            hand: HandKind::World,
         });
     }
     Ok(Box::new(World::new(scene)))
@@ -149,13 +182,7 @@ impl Hands for WorldHands {
     ) -> Result<Box<dyn Hand>, HandError> {
         match kind {
             HandKind::World => open_world(scene, options),
-            other => Err(HandError::Other {
-                hand: "world",
-                message: format!(
-                    "--hand {other} is not in this binary (it has our world only); \
-                     run it through dips-mujoco"
-                ),
-            }),
+            other => Err(HandError::NotInBinary { kind: other }),
         }
     }
 }
@@ -179,7 +206,11 @@ mod tests {
             .parse::<HandKind>()
             .unwrap_err()
             .to_string();
-        assert!(e.contains("--hand-model FILE"), "{e}");
+        assert_eq!(
+            e,
+            "`host/data/allegro_v4.json` is not a hand (allowed: world, mujoco); a hand \
+             description file is the hand model"
+        );
     }
 
     #[test]
@@ -195,16 +226,30 @@ mod tests {
                 .is_err()
         );
         let noisy = HandOptions {
-            noise: TrackerNoise::from_flags(0.001, 0.0).unwrap(),
+            noise: TrackerNoise::new(0.001, 0.0).unwrap(),
             seed: 1,
         };
         let e = WorldHands
             .open(HandKind::World, SceneKind::Card, &noisy)
             .err()
-            .unwrap()
-            .to_string();
-        assert!(e.contains("--hand mujoco"), "{e}");
-        assert!(TrackerNoise::from_flags(-1.0, 0.0).is_err());
-        assert_eq!(TrackerNoise::from_flags(0.0, 0.0), Ok(None));
+            .unwrap();
+        assert!(
+            matches!(
+                e,
+                HandError::NoTracker {
+                    hand: HandKind::World
+                }
+            ),
+            "{e}"
+        );
+        assert!(e.to_string().contains("tracker noise"), "{e}");
+        assert_eq!(
+            TrackerNoise::new(-1.0, 0.0),
+            Err(BadNoise {
+                axis: NoiseAxis::Position,
+                value: -1.0
+            })
+        );
+        assert_eq!(TrackerNoise::new(0.0, 0.0), Ok(None));
     }
 }

@@ -16,7 +16,10 @@ use crate::scenes::SceneKind;
 use crate::world::{ObjectState, StepReport, World, WorldError, WorldParams};
 
 mod kind;
-pub use kind::{HandKind, HandOptions, Hands, TrackerNoise, UnknownHand, WorldHands, open_world};
+pub use kind::{
+    BadNoise, HandKind, HandOptions, Hands, NoiseAxis, TrackerNoise, UnknownHand, WorldHands,
+    open_world,
+};
 
 /// The object's pose as a controller sees it.
 #[derive(Debug, Clone, PartialEq)]
@@ -88,6 +91,24 @@ pub enum HandError {
         hand: &'static str,
         /// What went wrong.
         message: String,
+    },
+    /// Tracker noise was asked of a hand that reports the exact object pose (our world).
+    #[error(
+        "{hand} hand: our world reports the exact object pose; tracker noise needs a hand with \
+         a simulated tracker (mujoco)"
+    )]
+    NoTracker {
+        /// The hand asked for.
+        hand: HandKind,
+    },
+    /// The hand is not in this binary (`dips` has our world only).
+    #[error(
+        "world hand: hand {kind} is not in this binary (it has our world only); run it through \
+         dips-mujoco"
+    )]
+    NotInBinary {
+        /// The hand asked for.
+        kind: HandKind,
     },
     /// Replay diverged from the recording.
     #[error(
