@@ -12,20 +12,8 @@ bin=${1:-target/release/dips}
 shift || true
 sets=("$@")
 [[ ${#sets[@]} -gt 0 ]] || sets=(10200 10210)
-[[ -x $bin ]] || { echo "error: $bin is missing: cargo build --release -p dips-cli" >&2; exit 1; }
+names=()
 for set in "${sets[@]}"; do
-    for seed in 0 1 2; do
-        out=docs/results/screwdriver/models-$set-seed$seed
-        # A finished run keeps only its median episodes in git: resuming it would run the
-        # others again (same outcomes, hours of work), so a run with results.json is skipped.
-        if [[ -f $out/results.json ]]; then
-            echo "models-$set-seed$seed: finished ($out/results.json), skipped"
-            continue
-        fi
-        models=onnx/models/screwdriver
-        [[ $seed == 0 ]] || models=$models-seed$seed
-        "$bin" eval --protocol "docs/results/protocols/screwdriver-models-$set-seed$seed.json" \
-            --out "$out" --jobs 1 --model-threads 1 \
-            --animate none --episode-reports medians --models "$models"
-    done
+    for seed in 0 1 2; do names+=("screwdriver-models-$set-seed$seed"); done
 done
+exec scripts/run-protocols.sh "$bin" "${names[@]}"

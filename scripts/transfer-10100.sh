@@ -12,31 +12,18 @@ bin=target/release/dips-mujoco
 [[ -x $bin ]] || { echo "error: $bin is missing: run scripts/mujoco-test.sh first" >&2; exit 1; }
 arms=("$@")
 [[ ${#arms[@]} -gt 0 ]] || arms=(mujoco world mujoco-noisy)
-# The run's flags must resolve to the protocol's settings (the tool checks them).
-hand_flags() {
-    case $1 in
-        world) echo "--hand world" ;;
-        mujoco) echo "--hand mujoco" ;;
-        mujoco-noisy) echo "--hand mujoco --noise-position 0.001 --noise-rotation 0.02" ;;
-        *) echo "error: unknown arm $1 (world, mujoco, mujoco-noisy)" >&2; exit 2 ;;
-    esac
-}
+# One lane per task; scripts/run-protocols.sh takes every flag (hand, tracker noise, max
+# modes, node budget) from the protocol and skips a finished run.
 lane() {
-    local task=$1 arm
-    shift
+    local task=$1 arm names=()
     for arm in "${arms[@]}"; do
-        # A finished run keeps only its median episodes in git; resuming it would run the
-        # others again, so a run with results.json is skipped.
-        if [[ -f docs/results/$task/transfer-10100-$arm/results.json ]]; then
-            echo "$task transfer-10100-$arm: finished, skipped"
-            continue
-        fi
-        # shellcheck disable=SC2046
-        "$bin" eval --protocol "docs/results/protocols/$task-transfer-10100-$arm.json" \
-            --out "docs/results/$task/transfer-10100-$arm" --jobs 1 --model-threads 1 \
-            --animate none --episode-reports medians $(hand_flags "$arm") "$@"
+        case $arm in
+            world | mujoco | mujoco-noisy) names+=("$task-transfer-10100-$arm") ;;
+            *) echo "error: unknown arm $arm (world, mujoco, mujoco-noisy)" >&2; exit 2 ;;
+        esac
     done
+    scripts/run-protocols.sh "$bin" "${names[@]}"
 }
-lane screwdriver --max-modes 4 &
-lane card --node-budget 8 &
+lane screwdriver &
+lane card &
 wait
