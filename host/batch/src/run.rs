@@ -82,6 +82,11 @@ pub enum RunShardError<E> {
     Item(E),
 }
 
+/// Stack of each worker thread: a work item may build a large value on its stack before it
+/// boxes it (a host-size planner, `dips_planning::sized::HostSession`, is about 2.4 MB; a
+/// debug build copies it more than once). Only the pages touched are committed.
+pub const WORKER_STACK_BYTES: usize = 64 << 20;
+
 /// Run `pending`, the unfinished items of a shard of which `skipped` are done, as `run` says:
 /// `work` runs one item and answers `Ok(None)`, `Ok(Some(note))` (the note is shown above the
 /// progress and counted in [`ShardOutcome::noted`]) or the error that stops the run; `name`
@@ -123,6 +128,7 @@ where
     let failure: Mutex<Option<E>> = Mutex::new(None);
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(run.jobs * run.threads_per_job)
+        .stack_size(WORKER_STACK_BYTES)
         .build()
         .map_err(RunShardError::ThreadPool)?;
     let ran = pending.len();

@@ -56,7 +56,7 @@ pub struct EpisodeArgs {
     pub card_goals: crate::search_args::CardGoalsArgs,
     /// The episode's search depth flag.
     #[command(flatten)]
-    pub depth: crate::search_args::DepthArgs,
+    pub online: crate::search_args::OnlineArgs,
     /// Stop after this many modes (default: the task's 7 / 5; the search depth stays).
     #[arg(long, allow_negative_numbers = true, value_parser = crate::search_args::parse_positive)]
     pub max_modes: Option<usize>,
@@ -116,7 +116,9 @@ pub fn run(args: EpisodeArgs, hands: &dyn Hands) -> anyhow::Result<()> {
         sampler,
         sequence,
         max_modes: args.max_modes,
-        search_depth: args.depth.search_depth,
+        search_depth: args.online.search_depth,
+        stop_rule: args.online.stop_rule,
+        planner_size: args.online.planner_size,
     };
     let mut exec = ExecSettings::for_task(task);
     let trained = match (&models, &args.models) {

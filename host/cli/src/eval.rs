@@ -104,7 +104,7 @@ pub struct EvalArgs {
     pub kernel: KernelTarget,
     /// The episode's search depth flag.
     #[command(flatten)]
-    pub depth: crate::search_args::DepthArgs,
+    pub online: crate::search_args::OnlineArgs,
     /// Stop each episode after this many modes (default: the task's 7 / 5).
     #[arg(long)]
     pub max_modes: Option<usize>,
@@ -289,7 +289,9 @@ pub fn run(args: EvalArgs, hands: &dyn Hands) -> anyhow::Result<()> {
             sampler: args.search.sampler,
             sequence: None,
             max_modes: args.max_modes,
-            search_depth: args.depth.search_depth,
+            search_depth: args.online.search_depth,
+            stop_rule: args.online.stop_rule,
+            planner_size: args.online.planner_size,
         },
         models: models_dir(args.models.as_deref(), task.task())?,
         engine: args.engine.into(),

@@ -14,6 +14,8 @@ use dips_kernel::mode::Task;
 use dips_kernel::search::{CostToCome, SearchOverrides};
 use dips_kernel::task::CardGoals;
 use dips_planning::online::{Method, SearchDepth};
+use dips_planning::sized::PlannerSize;
+use dips_planning::stop_rule::StopRule;
 use dips_world::scenes::SceneKind;
 
 /// A domain value that the command line reads with its own `FromStr` (whose error names the
@@ -104,6 +106,22 @@ impl Named for SearchDepth {
     const HELP: &'static [&'static str] = &[
         "The task's mode limit on every call (the paper's screwdriver: 7 throughout)",
         "The modes the episode has left (the paper's card)",
+    ];
+}
+
+impl Named for StopRule {
+    const NAMES: &'static [&'static str] = &StopRule::NAMES;
+    const HELP: &'static [&'static str] = &[
+        "Stop when a plan holds no mode (the paper's)",
+        "Also stop when the plan's expected end is no nearer the goal than here (ours)",
+    ];
+}
+
+impl Named for PlannerSize {
+    const NAMES: &'static [&'static str] = &PlannerSize::NAMES;
+    const HELP: &'static [&'static str] = &[
+        "The firmware's PaperPlanner: 512 nodes, 256 open",
+        "The host's: 4 096 nodes, 2 048 open",
     ];
 }
 
@@ -207,15 +225,25 @@ pub fn parse_budget_s(s: &str) -> Result<f64, String> {
     }
 }
 
-/// The search depth flag of `dips episode` and `dips eval` (a single planning call,
-/// `dips plan`, takes `--depth` instead).
+/// The flags of an episode's planning beyond one call's search, for `dips episode` and
+/// `dips eval` (a single planning call, `dips plan`, takes `--depth` instead).
 #[derive(Debug, Clone, Args)]
-pub struct DepthArgs {
+pub struct OnlineArgs {
     /// How deep each planning call searches: `fixed` (the task's mode limit on every call,
     /// the paper's screwdriver) or `modes-left` (the modes the episode has left, the paper's
     /// card). Default: the task's (`docs/online.md`, "Search depth").
     #[arg(long, value_parser = named::<SearchDepth>())]
     pub search_depth: Option<SearchDepth>,
+    /// When a searching method stops before the mode limit: `goal-reached` (a plan holds no
+    /// mode; the paper's) or `no-gain` (also when the plan's expected end is no nearer the
+    /// goal than here; ours, `docs/online.md`, "Stopping").
+    #[arg(long, value_parser = named::<StopRule>(), default_value = "goal-reached")]
+    pub stop_rule: StopRule,
+    /// The in-process planner's capacities: `paper` (the firmware's `PaperPlanner`, 512
+    /// nodes, 256 open) or `host` (4 096 nodes, 2 048 open). A `--kernel` over the wire has
+    /// its own.
+    #[arg(long, value_parser = named::<PlannerSize>(), default_value = "paper")]
+    pub planner_size: PlannerSize,
 }
 
 /// The flags that set how a planning call searches, beyond the task's own settings.
@@ -362,7 +390,7 @@ mod tests {
     #[derive(Debug, Parser)]
     struct DepthCli {
         #[command(flatten)]
-        depth: DepthArgs,
+        depth: OnlineArgs,
     }
 
     #[test]

@@ -1013,6 +1013,8 @@ mod tests {
                 hand: Default::default(),
                 tracker_noise: None,
                 card_goals: Default::default(),
+                stop_rule: Default::default(),
+                planner_size: Default::default(),
             },
             methods: vec!["dips".into()],
             first_seed,

@@ -11,6 +11,8 @@ use dips_onnx::EngineKind;
 use dips_planning::online::{
     Method, OnlineSettings, SearchDepth, TimeBudgetError, check_time_budget_s,
 };
+use dips_planning::sized::PlannerSize;
+use dips_planning::stop_rule::StopRule;
 use dips_world::hand::{HandKind, TrackerNoise};
 use dips_world::scenes::SceneKind;
 use serde::{Deserialize, Serialize};
@@ -60,6 +62,15 @@ pub struct EpisodeSettings {
     /// and protocols written before they could differ read as before: absent means `capped`.
     #[serde(default, skip_serializing_if = "CardGoals::is_capped")]
     pub card_goals: CardGoals,
+    /// When a searching method stopped before its mode limit (`--stop-rule`). Written only
+    /// when it is not the paper's, so that earlier files and protocols read as before: absent
+    /// means `goal-reached`.
+    #[serde(default, skip_serializing_if = "StopRule::is_paper")]
+    pub stop_rule: StopRule,
+    /// The in-process planner's capacities (`--planner-size`). Written only when they are
+    /// not the firmware's: absent means `paper`.
+    #[serde(default, skip_serializing_if = "PlannerSize::is_paper")]
+    pub planner_size: PlannerSize,
 }
 
 impl EpisodeSettings {
@@ -362,6 +373,8 @@ impl EvalSettings {
             hand: self.hand,
             tracker_noise: self.tracker_noise,
             card_goals: self.card_goals,
+            stop_rule: self.online.stop_rule,
+            planner_size: self.online.planner_size,
         }
     }
 }
@@ -480,7 +493,29 @@ mod tests {
             hand: HandKind::World,
             tracker_noise: None,
             card_goals: CardGoals::Capped,
+            stop_rule: StopRule::GoalReached,
+            planner_size: PlannerSize::Paper,
         }
+    }
+
+    #[test]
+    fn the_stop_rule_and_planner_size_round_trip_and_the_papers_are_the_default() {
+        let paper = serde_json::to_value(settings()).unwrap();
+        assert!(paper.get("stop_rule").is_none() && paper.get("planner_size").is_none());
+        let ours = EpisodeSettings {
+            stop_rule: StopRule::NoGain,
+            planner_size: PlannerSize::Host,
+            ..settings()
+        };
+        let v = serde_json::to_value(&ours).unwrap();
+        assert_eq!(v["stop_rule"], "no-gain");
+        assert_eq!(v["planner_size"], "host");
+        assert_eq!(serde_json::from_value::<EpisodeSettings>(v).unwrap(), ours);
+        assert_eq!(
+            settings().first_difference(&ours).0,
+            "planner_size",
+            "a resumed run with another planner is refused"
+        );
     }
 
     #[test]

@@ -40,6 +40,8 @@ fn settings(methods: Vec<Method>, trials: usize) -> EvalSettings {
             sequence: None,
             max_modes: Some(1),
             search_depth: None,
+            stop_rule: Default::default(),
+            planner_size: Default::default(),
         },
         models: default_models_dir(Task::Card).unwrap(),
         engine: EngineKind::Kernel,

@@ -61,6 +61,8 @@ fn settings(models: &Path, methods: Vec<Method>, first_seed: u64) -> EvalSetting
             sequence: None,
             max_modes: Some(1),
             search_depth: None,
+            stop_rule: Default::default(),
+            planner_size: Default::default(),
         },
         models: models.to_path_buf(),
         engine: EngineKind::Kernel,

@@ -301,6 +301,10 @@ pub struct PlanRecord {
     /// wire keeps them to itself). `docs/particles.md`.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub particles_diagnostics: Option<ParticleSummary>,
+    /// The episode stopped instead of executing this plan: its expected end was no nearer the
+    /// goal than the state it started from (`--stop-rule no-gain`). Written only when true.
+    #[serde(skip_serializing_if = "std::ops::Not::not")]
+    pub stopped_no_gain: bool,
 }
 
 /// [`ParticleDiagnostics`] of one planning call as means, for `result.json`.

@@ -18,6 +18,8 @@
 pub mod online;
 pub mod policy;
 pub mod quality;
+pub mod sized;
+pub mod stop_rule;
 
 use std::path::{Path, PathBuf};
 use std::time::Instant;

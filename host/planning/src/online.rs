@@ -29,9 +29,10 @@ use dips_kernel::session::{PlanSpec, SpecError};
 use dips_kernel::task::CardGoals;
 
 use crate::policy::PolicyError;
+use crate::sized::PlannerSize;
+use crate::stop_rule::{PlanGain, StopRule};
 use crate::{
-    Models, POLICY_DIR, PaperSession, PlanCallError, PlanService, SampleError, StdClock,
-    sample_trajectories,
+    Models, POLICY_DIR, PlanCallError, PlanService, SampleError, StdClock, sample_trajectories,
 };
 use dips_exec::episode::{CARD_MODES, SCREWDRIVER_MODES};
 use dips_exec::problems::contract::{LayoutError, contract_state, from_contract};
@@ -264,6 +265,12 @@ pub struct OnlineSettings {
     pub max_modes: Option<usize>,
     /// How deep each planning call searches (`None`: the task's, [`SearchDepth::for_task`]).
     pub search_depth: Option<SearchDepth>,
+    /// When a searching method stops before its mode limit ([`StopRule`]; the paper's when
+    /// the plan holds no mode).
+    pub stop_rule: StopRule,
+    /// The in-process planner's capacities ([`PlannerSize`]; the firmware's by default).
+    /// A kernel over the wire has its own.
+    pub planner_size: PlannerSize,
 }
 
 impl OnlineSettings {
@@ -346,6 +353,8 @@ impl Default for OnlineSettings {
             sequence: None,
             max_modes: None,
             search_depth: None,
+            stop_rule: StopRule::default(),
+            planner_size: PlannerSize::default(),
         }
     }
 }
@@ -481,6 +490,7 @@ fn plan_call<H: Hand + ?Sized>(
         .iter()
         .filter_map(|&id: &ModeId| Mode::from_id(task, id))
         .collect();
+    let gain = PlanGain::of(task, &start, goal, card_goals, report.expected_progress);
     let record = PlanRecord {
         executed: executed.len(),
         goal,
@@ -509,6 +519,9 @@ fn plan_call<H: Hand + ?Sized>(
                     .map(|m| m.name().to_string())
             })
         }),
+        stopped_no_gain: settings.stop_rule == StopRule::NoGain
+            && !modes.is_empty()
+            && gain.is_none_or(|g| g.no_gain()),
     };
     Ok((modes, record))
 }
@@ -562,7 +575,7 @@ pub fn run_online<H: Hand + ?Sized>(
     let mut rng = KernelRng::seed_from_u64(seed);
     let mut sampler_rng = KernelRng::seed_from_u64(seed ^ 0xd1ff_0510);
     let mut session = match (models, method.needs_models()) {
-        (Some(m), _) => Some(PaperSession::new(m)),
+        (Some(m), _) => Some(settings.planner_size.session(m)),
         (None, true) => return Err(OnlineError::NeedsModels { method }),
         (None, false) => None,
     };
@@ -635,7 +648,12 @@ pub fn run_online<H: Hand + ?Sized>(
                 )
             });
             planning_s.push(record.seconds);
+            let stop_here = record.stopped_no_gain;
             plans.push(record);
+            if stop_here {
+                progress("  stopped: the plan's expected end is no nearer the goal than here");
+                break;
+            }
             queue = modes;
             queue.reverse();
         }
