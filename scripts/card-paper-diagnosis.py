@@ -9,6 +9,8 @@ Usage: scripts/card-paper-diagnosis.py [DATA_DIR] > docs/results/card/paper-tuni
   --registered: the same figures for the registered runs (docs/results/card/paper-10300-seed<S>,
   paper-10310-seed<S>, paper-code-10300-seed0, capped-10300-seed0: those that exist), without
   the demos.
+  paper-tuning-500-nogain-host is `--stop-rule no-gain --planner-size host` on the same seeds
+  (dips and dips-no-replan; docs/online.md, "Stopping and the planner's size").
 
 The paired differences (DIPS minus each method, from results.json) are computed from the
 committed files; the per-episode figures need the full runs (commit 717570b, or
@@ -27,7 +29,8 @@ import statistics as st
 import struct
 import sys
 
-RUNS = ["docs/results/card/paper-tuning-500-code", "docs/results/card/paper-tuning-500-paper"]
+RUNS = ["docs/results/card/paper-tuning-500-code", "docs/results/card/paper-tuning-500-paper",
+        "docs/results/card/paper-tuning-500-nogain-host"]
 PUSHES = ("index", "middle", "both")
 
 
@@ -42,6 +45,7 @@ def card_y(state):
 def episode_figures(results):
     pushes, after_third, counts, first_mode_error, believed = [], [], [], [], []
     first_status, first_end = {}, []
+    stopped, first_expanded = 0, []
     for r in results:
         plans = r.get("plans", [])
         if plans:
@@ -51,6 +55,9 @@ def episode_figures(results):
             first_status[status] = first_status.get(status, 0) + 1
             if plans[0]["expected_terminal_state"][9] is not None:
                 first_end.append(plans[0]["expected_terminal_state"][9] * 100.0)
+            first_expanded.append(plans[0]["nodes_expanded"])
+            # `--stop-rule no-gain`: the episode stopped instead of executing a plan.
+            stopped += any(p.get("stopped_no_gain", False) for p in plans)
         ys = []
         n = 0
         for run in r["mode_runs"]:
@@ -86,6 +93,8 @@ def episode_figures(results):
         "first_plan_expected_push_length_cm": {"mean": mean(believed), "n": len(believed)},
         "first_call_status": first_status,
         "first_plan_expected_end_cm": {"mean": mean(first_end), "n": len(first_end)},
+        "first_call_nodes_expanded": {"mean": mean(first_expanded), "n": len(first_expanded)},
+        "trials_stopped_no_gain": stopped,
     }
 
 

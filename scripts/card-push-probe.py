@@ -1,0 +1,64 @@
+#!/usr/bin/env python3
+"""How far the card-paper models believe a push moves the card, by where it starts, beside the
+demos' own pushes from the same states (the held-out demos of each model's training).
+
+Runs the `mode_probe` example (host/cli/examples/mode_probe.rs: 64 segments per start state,
+the planner's sampler) on every held-out push (index, middle, both) of the card-paper demos and
+bins the mean diffused and executed change of the card's y by the push's start.
+
+Usage: scripts/card-push-probe.py [DATA_DIR] > docs/results/card/paper-push-probe.json
+  DATA_DIR: the demos (default target/models-work/data/card-paper, `dips datagen --task card
+  --card-goals paper --demos 128`). Needs `cargo build --release -p dips-cli --example mode_probe`.
+"""
+import json
+import re
+import statistics as st
+import subprocess
+import sys
+
+PROBE = "target/release/examples/mode_probe"
+MODELS = ["onnx/models/card-paper", "onnx/models/card-paper-seed1", "onnx/models/card-paper-seed2"]
+SAMPLER = "ddpm:16"
+LINE = re.compile(r"start (\S+): executed (\S+), diffused (\S+);")
+
+
+def probe(models, data, mode):
+    out = subprocess.run(
+        [PROBE, "--task", "card", "--models", models, "--sampler", SAMPLER, "--demos", data,
+         "--held-out", "--mode", mode, "--limit", "1000"],
+        check=True, capture_output=True, text=True).stdout
+    rows = []
+    for line in out.splitlines():
+        m = LINE.search(line)
+        if m:
+            rows.append([float(v.rstrip(",:")) * 100.0 for v in m.groups()])
+    return rows
+
+
+def main():
+    data = sys.argv[1] if len(sys.argv) > 1 else "target/models-work/data/card-paper"
+    report = {"command": "scripts/card-push-probe.py " + data, "sampler": SAMPLER,
+              "unit": "cm of card y", "models": {}}
+    for models in MODELS:
+        rows = [r for mode in ("index", "middle", "both") for r in probe(models, data, mode)]
+        bins = {}
+        for start, executed, diffused in rows:
+            b = int(round(-start)) // 2 * 2
+            bins.setdefault(b, []).append((diffused, executed))
+        report["models"][models] = {
+            "pushes": len(rows),
+            "diffused_mean": round(st.mean(r[2] for r in rows), 3),
+            "executed_mean": round(st.mean(r[1] for r in rows), 3),
+            "by_start": {
+                f"{b}-{b + 2} cm": {
+                    "n": len(v),
+                    "diffused_mean": round(st.mean(d for d, _ in v), 3),
+                    "executed_mean": round(st.mean(e for _, e in v), 3),
+                } for b, v in sorted(bins.items())},
+        }
+    json.dump(report, sys.stdout, indent=1)
+    print()
+
+
+if __name__ == "__main__":
+    main()
