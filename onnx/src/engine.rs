@@ -97,6 +97,39 @@ pub enum EngineKind {
     Kernel,
 }
 
+impl EngineKind {
+    /// Both engines.
+    pub const ALL: [EngineKind; 2] = [EngineKind::Tract, EngineKind::Kernel];
+
+    /// The engine's name in settings files (`eval.json`) and on the command line: `tract` or
+    /// `kernel`.
+    pub const fn name(self) -> &'static str {
+        match self {
+            EngineKind::Tract => "tract",
+            EngineKind::Kernel => "kernel",
+        }
+    }
+
+    /// Both engines' names, in [`EngineKind::ALL`] order.
+    pub const NAMES: [&'static str; 2] = [EngineKind::Tract.name(), EngineKind::Kernel.name()];
+}
+
+impl std::str::FromStr for EngineKind {
+    type Err = dips_kernel::name::UnknownValue;
+
+    /// An engine by its name ([`EngineKind::name`]); the error names the value and the engines.
+    fn from_str(name: &str) -> std::result::Result<Self, Self::Err> {
+        dips_kernel::name::UnknownValue::find("engine", name, &Self::ALL, &Self::NAMES, Self::name)
+    }
+}
+
+impl std::fmt::Display for EngineKind {
+    /// The engine's name ([`EngineKind::name`]).
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
 /// A loaded engine of either kind.
 #[derive(Debug)]
 pub enum AnyEngine {
@@ -143,3 +176,19 @@ impl AnyEngine {
 }
 
 impl_engine_traits!(AnyEngine);
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn engines_read_back_their_names_and_a_bad_one_lists_them() {
+        for kind in EngineKind::ALL {
+            assert_eq!(kind.to_string().parse::<EngineKind>(), Ok(kind));
+        }
+        assert_eq!(
+            "onnx".parse::<EngineKind>().unwrap_err().to_string(),
+            "unknown engine `onnx` (expected tract or kernel)"
+        );
+    }
+}

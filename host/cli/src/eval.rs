@@ -234,16 +234,12 @@ pub fn run(args: EvalArgs, hands: &dyn Hands) -> anyhow::Result<()> {
     let given = protocol.as_ref().map(|p| &p.protocol.eval);
     let task: SceneKind = match (args.task, given) {
         (Some(task), _) => task,
-        (None, Some(e)) => e.episode.task.parse()?,
+        (None, Some(e)) => e.episode.task,
         (None, None) => anyhow::bail!("--task is required"),
     };
     let methods = match (&args.methods, given) {
         (Some(methods), _) => methods.clone(),
-        (None, Some(e)) => e
-            .methods
-            .iter()
-            .map(|n| n.parse())
-            .collect::<Result<Vec<Method>, _>>()?,
+        (None, Some(e)) => e.methods.clone(),
         (None, None) => Method::ALL.to_vec(),
     };
     if args.write_protocol.is_some() && args.first_seed.is_none() {
@@ -402,21 +398,24 @@ fn write_protocol(
 
 fn write_report(args: &ReportArgs<'_>, s: &dips_eval::Summary) -> anyhow::Result<()> {
     use dips_eval::report::{EpisodeReports, ReportOptions};
-    let methods: Vec<String> = s.methods.iter().map(|m| m.method.clone()).collect();
+    let methods: Vec<Method> = s.methods.iter().map(|m| m.method).collect();
     let animate = match &args.animate {
         None => methods.clone(),
         Some(list) if list.len() == 1 && list[0] == "none" => Vec::new(),
-        Some(list) => {
-            for m in list {
-                if !methods.contains(m) {
-                    anyhow::bail!(
-                        "--animate {m}: not a method of this evaluation (its methods: {}; or none)",
-                        methods.join(", ")
-                    );
-                }
-            }
-            list.clone()
-        }
+        Some(list) => list
+            .iter()
+            .map(|m| match methods.iter().find(|ours| ours.name() == m) {
+                Some(&ours) => Ok(ours),
+                None => Err(anyhow::anyhow!(
+                    "--animate {m}: not a method of this evaluation (its methods: {}; or none)",
+                    methods
+                        .iter()
+                        .map(|m| m.name())
+                        .collect::<Vec<_>>()
+                        .join(", ")
+                )),
+            })
+            .collect::<anyhow::Result<_>>()?,
     };
     let options = ReportOptions {
         episodes: if args.episode_reports == "medians" {

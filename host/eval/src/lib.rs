@@ -3,6 +3,8 @@
 //! starts), two episodes at a time on two cores, each episode's `result.json` kept for replay.
 //!
 //! - [`settings`]: what an evaluation is, and `eval.json`, which a resumed run must agree with.
+//! - [`by_name`]: how its files write the domain values (task, methods, sampler, ...): by the
+//!   names their own types spell.
 //! - [`run`]: the episodes of one shard, resumable (finished episodes are files and are
 //!   skipped; a kill loses only the episodes in flight), with a progress bar and ETA.
 //! - [`merge`]: the shards' outputs (one shared directory or N) as one evaluation, every
@@ -30,6 +32,7 @@
 //! DIR/report.html                            the page to open in a browser
 //! ```
 
+pub mod by_name;
 pub mod merge;
 pub mod protocol;
 pub mod report;

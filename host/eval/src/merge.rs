@@ -207,7 +207,7 @@ fn agree(ours: &mut EvalFile, theirs: &EvalFile, path: &Path) -> Result<(), Merg
     }
     for m in &theirs.methods {
         if !ours.methods.contains(m) {
-            ours.methods.push(m.clone());
+            ours.methods.push(*m);
         }
     }
     ours.trials = ours.trials.max(theirs.trials);
@@ -295,11 +295,11 @@ pub fn merge(
         for method in &theirs.methods {
             for trial in 0..theirs.trials {
                 let seed = theirs.first_seed + trial as u64;
-                let from = episode_dir(src, method, seed);
+                let from = episode_dir(src, *method, seed);
                 if !finished(&from) {
                     continue;
                 }
-                let to = episode_dir(out, method, seed);
+                let to = episode_dir(out, *method, seed);
                 if finished(&to) {
                     already_there += 1;
                 } else {
@@ -335,7 +335,7 @@ pub fn merge(
     for method in &file.methods {
         for trial in 0..file.trials {
             let seed = file.first_seed + trial as u64;
-            if !finished(&episode_dir(out, method, seed)) {
+            if !finished(&episode_dir(out, *method, seed)) {
                 missing.push(match count {
                     Some(n) => format!(
                         "{method} seed {seed} (shard {})",

@@ -17,7 +17,6 @@ use std::io::Read;
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
-use dips_kernel::diffusion::SamplerConfig;
 use dips_onnx::Role;
 use dips_planning::online::Method;
 use dips_planning::{POLICY_DIR, PRIOR_FILE, model_file};
@@ -309,9 +308,7 @@ impl Protocol {
             .ok()
             .and_then(|cwd| cwd.canonicalize().ok())
             .and_then(|cwd| models.strip_prefix(cwd).ok().map(Path::to_path_buf))
-            .unwrap_or(models)
-            .display()
-            .to_string();
+            .unwrap_or(models);
         Ok(Self {
             format: PROTOCOL_FORMAT,
             name: name.to_string(),
@@ -329,7 +326,9 @@ impl Protocol {
             source,
         };
         let raw: serde_json::Value = serde_json::from_str(text).map_err(json)?;
-        let protocol: Protocol = serde_json::from_value(raw.clone()).map_err(json)?;
+        // From the text, so that a bad value (an unknown task, method, sampler, ...) is named
+        // with its line.
+        let protocol: Protocol = serde_json::from_str(text).map_err(json)?;
         let invalid = |field: &str, why: String| ProtocolError::Invalid {
             path: path.to_path_buf(),
             field: field.to_string(),
@@ -357,25 +356,10 @@ impl Protocol {
             return Err(invalid("name", "is empty".into()));
         }
         let e = &protocol.eval;
-        if e.episode.task.parse::<SceneKind>().is_err() {
-            return Err(invalid(
-                "eval.episode.task",
-                format!("is {:?}; expected screwdriver or card", e.episode.task),
-            ));
-        }
         if e.methods.is_empty() {
             return Err(invalid("eval.methods", "is empty".into()));
         }
         for (i, m) in e.methods.iter().enumerate() {
-            if m.parse::<Method>().is_err() {
-                return Err(invalid(
-                    "eval.methods",
-                    format!(
-                        "names the unknown method {m:?}; available: {}",
-                        Method::ALL.map(Method::name).join(", ")
-                    ),
-                ));
-            }
             if e.methods[..i].contains(m) {
                 return Err(invalid("eval.methods", format!("names {m} twice")));
             }
@@ -387,12 +371,6 @@ impl Protocol {
             return Err(invalid(
                 "eval.first_seed",
                 "+ trials overflows the seed range".into(),
-            ));
-        }
-        if let Err(err) = e.episode.sampler.parse::<SamplerConfig>() {
-            return Err(invalid(
-                "eval.episode.sampler",
-                format!("is {:?}: {err}", e.episode.sampler),
             ));
         }
         for (file, hash) in &protocol.models {
@@ -407,18 +385,13 @@ impl Protocol {
     }
 
     /// The protocol's task.
-    pub fn task(&self) -> Option<SceneKind> {
-        self.eval.episode.task.parse().ok()
+    pub fn task(&self) -> SceneKind {
+        self.eval.episode.task
     }
 
-    /// The protocol's methods, in table order (unknown names left out; [`Protocol::parse`]
-    /// refuses them).
-    pub fn methods(&self) -> Vec<Method> {
-        self.eval
-            .methods
-            .iter()
-            .filter_map(|m| m.parse().ok())
-            .collect()
+    /// The protocol's methods, in table order.
+    pub fn methods(&self) -> &[Method] {
+        &self.eval.methods
     }
 
     /// Whether any of its seeds is below [`FIRST_EVALUATION_SEED`] (a tuning protocol).
@@ -999,24 +972,27 @@ mod tests {
     fn ranges_overlap_only_when_they_share_a_seed() {
         let e = |first_seed, trials| EvalFile {
             episode: crate::settings::EpisodeSettings {
-                task: "card".into(),
-                sampler: "ddpm:16".into(),
+                task: SceneKind::Card,
+                sampler: "ddpm:16"
+                    .parse::<dips_kernel::diffusion::SamplerConfig>()
+                    .unwrap()
+                    .method,
                 time_budget_s: 300.0,
                 node_budget: 0,
                 max_modes: None,
-                cost_to_come: "cumulative".into(),
-                search_depth: "modes-left".into(),
+                cost_to_come: Default::default(),
+                search_depth: dips_planning::online::SearchDepth::ModesLeft,
                 alpha: None,
                 beta: None,
                 models: "/m".into(),
-                engine: "kernel".into(),
+                engine: dips_onnx::EngineKind::Kernel,
                 hand: Default::default(),
                 tracker_noise: None,
                 card_goals: Default::default(),
                 stop_rule: Default::default(),
                 planner_size: Default::default(),
             },
-            methods: vec!["dips".into()],
+            methods: vec![Method::Dips],
             first_seed,
             trials,
         };

@@ -4,8 +4,10 @@
 
 use std::path::{Path, PathBuf};
 
+use dips_planning::online::Method;
 use dips_report::html::{Cell, Page};
 use dips_report::{EPISODE_GIF, REPORT_HTML, Recording, ReportError, TIMELINE_SVG};
+use dips_world::scenes::SceneKind;
 
 /// Why an evaluation's report could not be written.
 #[derive(Debug, thiserror::Error)]
@@ -28,7 +30,7 @@ use crate::settings::episode_dir;
 use crate::summary::{MethodSummary, Summary, Trial};
 
 /// The trial whose outcome is the method's median (the lower middle one for an even count).
-pub fn median_trial<'a>(s: &'a Summary, method: &str) -> Option<&'a Trial> {
+pub fn median_trial(s: &Summary, method: Method) -> Option<&Trial> {
     let mut mine: Vec<&Trial> = s
         .trials
         .iter()
@@ -43,7 +45,7 @@ pub fn median_trial<'a>(s: &'a Summary, method: &str) -> Option<&'a Trial> {
     mine.get(mine.len().saturating_sub(1) / 2).copied()
 }
 
-fn rel(method: &str, seed: u64, file: &str) -> String {
+fn rel(method: Method, seed: u64, file: &str) -> String {
     format!("episodes/{method}/seed-{seed}/{file}")
 }
 
@@ -57,7 +59,7 @@ fn stats_cell(v: Option<crate::summary::Stats>, digits: usize, spread: bool) -> 
 
 fn summary_row(m: &MethodSummary, digits: usize) -> Vec<Cell> {
     vec![
-        Cell::Link(m.method.clone(), format!("#method-{}", m.method)),
+        Cell::Link(m.method.to_string(), format!("#method-{}", m.method)),
         format!("{}", m.trials).into(),
         format!("{}/{}", m.valid, m.trials).into(),
         format!("{}/{}", m.success, m.trials).into(),
@@ -86,7 +88,7 @@ pub struct ReportOptions {
     /// Which trials get their own report.
     pub episodes: EpisodeReports,
     /// Methods whose median trial is animated (empty: none).
-    pub animate: Vec<String>,
+    pub animate: Vec<Method>,
 }
 
 /// Write the chosen trials' episode reports (plots over time and their page; the animation
@@ -99,26 +101,25 @@ pub fn write_report(
     options: &ReportOptions,
     progress: &mut dyn FnMut(usize, usize),
 ) -> Result<(), EvalReportError> {
-    let screwdriver = s.task == "screwdriver";
+    let screwdriver = s.task == SceneKind::Screwdriver;
     let digits = if screwdriver { 3 } else { 2 };
-    let medians: Vec<(String, u64)> = s
+    let medians: Vec<(Method, u64)> = s
         .methods
         .iter()
-        .filter_map(|m| median_trial(s, &m.method).map(|t| (m.method.clone(), t.seed)))
+        .filter_map(|m| median_trial(s, m.method).map(|t| (m.method, t.seed)))
         .collect();
     let chosen: Vec<&Trial> = s
         .trials
         .iter()
         .filter(|t| t.error.is_none())
         .filter(|t| {
-            options.episodes == EpisodeReports::All || medians.contains(&(t.method.clone(), t.seed))
+            options.episodes == EpisodeReports::All || medians.contains(&(t.method, t.seed))
         })
         .collect();
     for (k, t) in chosen.iter().enumerate() {
-        let ep = episode_dir(dir, &t.method, t.seed);
+        let ep = episode_dir(dir, t.method, t.seed);
         let rec = Recording::read(&ep.join("result.json"))?;
-        let animate =
-            medians.contains(&(t.method.clone(), t.seed)) && options.animate.contains(&t.method);
+        let animate = medians.contains(&(t.method, t.seed)) && options.animate.contains(&t.method);
         dips_report::write_episode_report(&ep, &rec, animate, &mut |_, _| {}).map_err(
             |source| EvalReportError::Episode {
                 episode: ep.clone(),
@@ -182,19 +183,19 @@ pub fn write_report(
         }
     }
     for m in &s.methods {
-        page.heading(2, &format!("method-{}", m.method), &m.method);
+        page.heading(2, &format!("method-{}", m.method), m.method.name());
         let mine: Vec<&Trial> = s.trials.iter().filter(|t| t.method == m.method).collect();
-        if let Some(t) = median_trial(s, &m.method) {
+        if let Some(t) = median_trial(s, m.method) {
             page.paragraph(&format!(
                 "Median trial: seed {} ({what} {:.digits$} {unit}).",
                 t.seed,
                 t.outcome.unwrap_or(f64::NAN)
             ));
-            let gif = rel(&m.method, t.seed, EPISODE_GIF);
+            let gif = rel(m.method, t.seed, EPISODE_GIF);
             if dir.join(&gif).exists() {
                 page.image(&gif, &format!("animation of {} seed {}", m.method, t.seed));
             }
-            let timeline = rel(&m.method, t.seed, TIMELINE_SVG);
+            let timeline = rel(m.method, t.seed, TIMELINE_SVG);
             if dir.join(&timeline).exists() {
                 page.image(
                     &timeline,
@@ -205,7 +206,7 @@ pub fn write_report(
         let rows: Vec<Vec<Cell>> = mine
             .iter()
             .map(|t| {
-                let report = rel(&t.method, t.seed, REPORT_HTML);
+                let report = rel(t.method, t.seed, REPORT_HTML);
                 vec![
                     format!("{}", t.seed).into(),
                     t.outcome

@@ -324,7 +324,7 @@ pub fn run_eval_on(
     let pending: Vec<(Method, u64)> = episodes
         .iter()
         .copied()
-        .filter(|(m, s)| !finished(&episode_dir(dir, m.name(), *s)))
+        .filter(|(m, s)| !finished(&episode_dir(dir, *m, *s)))
         .collect();
     let skipped = episodes.len() - pending.len();
     // `jobs` workers take episodes from one queue; the pool has `jobs × model_threads`
@@ -339,7 +339,7 @@ pub fn run_eval_on(
     };
     let name = |&(method, seed): &(Method, u64)| format!("{} seed {seed}", method.name());
     let outcome = run_shard(&run, pending, skipped, name, |&(method, seed)| {
-        let ep_dir = episode_dir(dir, method.name(), seed);
+        let ep_dir = episode_dir(dir, method, seed);
         Ok(run_episode(hands, settings, method, seed, &ep_dir)?
             .map(|e| format!("{} failed: {e}", name(&(method, seed)))))
     })

@@ -3,7 +3,7 @@
 use std::path::{Path, PathBuf};
 
 use dips_batch::{ProgressMode, Shard};
-use dips_kernel::name::UnknownValue;
+use dips_kernel::diffusion::SamplingMethod;
 use dips_kernel::search::CostToCome;
 use dips_kernel::task::CardGoals;
 use dips_link::KernelTarget;
@@ -15,16 +15,19 @@ use dips_planning::sized::PlannerSize;
 use dips_planning::stop_rule::StopRule;
 use dips_world::hand::{HandKind, TrackerNoise};
 use dips_world::scenes::SceneKind;
-use serde::{Deserialize, Serialize};
+use serde::{Deserialize, Deserializer, Serialize};
 
 /// What makes two episodes of one method and seed the same: a resumed evaluation must agree
 /// on all of it (`eval.json`), or its table would mix settings.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct EpisodeSettings {
-    /// Task name.
-    pub task: String,
-    /// Sampler name (`ddpm` or `ddim:S`).
-    pub sampler: String,
+    /// The task.
+    #[serde(with = "crate::by_name")]
+    pub task: SceneKind,
+    /// The sampler's method (`ddpm`, `ddpm:S`, `ddim:S`), its guidance and clip the
+    /// defaults.
+    #[serde(with = "crate::by_name")]
+    pub sampler: SamplingMethod,
     /// Wall-clock budget of one planning call (s).
     pub time_budget_s: f64,
     /// Most expansions per planning call (0: the planner's capacity); the task's when none
@@ -32,24 +35,26 @@ pub struct EpisodeSettings {
     pub node_budget: u32,
     /// Mode limit per episode (`None`: the task's).
     pub max_modes: Option<usize>,
-    /// How the search formed `g` ([`CostToCome::name`]). Files written before it was
-    /// recorded were all `cumulative`.
-    #[serde(default = "cumulative")]
-    pub cost_to_come: String,
-    /// How deep the planning calls searched ([`SearchDepth::name`]). Files written before it
-    /// was recorded used the task's rule of then, which is filled in when they are read.
-    #[serde(default)]
-    pub search_depth: String,
+    /// How the search formed `g`. Files written before it was recorded were all
+    /// `cumulative`.
+    #[serde(default = "cumulative", with = "crate::by_name")]
+    pub cost_to_come: CostToCome,
+    /// How deep the planning calls searched. Files written before it was recorded (without
+    /// it, or with `""`) used the task's rule of then, which [`EvalFile`] fills in when it is
+    /// read.
+    #[serde(with = "crate::by_name")]
+    pub search_depth: SearchDepth,
     /// The heuristic's `α` when `--alpha` set it (absent: the task's).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub alpha: Option<f32>,
     /// The heuristic's `β` when `--beta` set it (absent: the task's).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub beta: Option<f32>,
-    /// Models directory (absolute).
-    pub models: String,
-    /// Engine of the models (`kernel` or `tract`).
-    pub engine: String,
+    /// Models directory (absolute; in a protocol, where they were when it was written).
+    pub models: PathBuf,
+    /// Engine of the models.
+    #[serde(with = "crate::by_name")]
+    pub engine: EngineKind,
     /// The hand that executed the episodes (`--hand`). Written only when it is not our world,
     /// so that the files of our world's runs, and the protocols that hold them, read as before:
     /// absent means `world`.
@@ -95,8 +100,8 @@ fn is_world(hand: &HandKind) -> bool {
 }
 
 /// What [`EpisodeSettings::cost_to_come`] was before it was recorded.
-fn cumulative() -> String {
-    CostToCome::Cumulative.name().to_string()
+fn cumulative() -> CostToCome {
+    CostToCome::Cumulative
 }
 
 /// The search depth of every evaluation written before [`EpisodeSettings::search_depth`] was
@@ -220,14 +225,6 @@ pub enum EvalFileError {
         #[source]
         source: serde_json::Error,
     },
-    /// The file names an unknown task.
-    #[error("{}: {error}", path.display())]
-    Task {
-        /// The file.
-        path: PathBuf,
-        /// The task it names.
-        error: UnknownValue,
-    },
     /// The output directory cannot be made.
     #[error("cannot create the output directory {}", dir.display())]
     Create {
@@ -340,7 +337,7 @@ impl EvalSettings {
     pub fn eval_file(&self) -> EvalFile {
         EvalFile {
             episode: self.episode_settings(),
-            methods: self.methods.iter().map(|m| m.name().to_string()).collect(),
+            methods: self.methods.clone(),
             first_seed: self.first_seed,
             trials: self.trials,
         }
@@ -352,24 +349,17 @@ impl EvalSettings {
         let task = self.task.task();
         let search = self.online.search.resolve(task, 0, 0);
         EpisodeSettings {
-            task: self.task.name().to_string(),
-            sampler: self.online.sampler.method.to_string(),
+            task: self.task,
+            sampler: self.online.sampler.method,
             time_budget_s: self.online.time_budget_s,
             node_budget: search.node_budget,
             max_modes: self.online.max_modes,
-            cost_to_come: search.cost_to_come.name().to_string(),
-            search_depth: self.online.depth_rule(self.task).name().to_string(),
+            cost_to_come: search.cost_to_come,
+            search_depth: self.online.depth_rule(self.task),
             alpha: self.online.search.alpha,
             beta: self.online.search.beta,
-            models: std::path::absolute(&self.models)
-                .unwrap_or_else(|_| self.models.clone())
-                .display()
-                .to_string(),
-            engine: match self.engine {
-                EngineKind::Kernel => "kernel",
-                EngineKind::Tract => "tract",
-            }
-            .to_string(),
+            models: std::path::absolute(&self.models).unwrap_or_else(|_| self.models.clone()),
+            engine: self.engine,
             hand: self.hand,
             tracker_noise: self.tracker_noise,
             card_goals: self.card_goals,
@@ -382,10 +372,13 @@ impl EvalSettings {
 /// `eval.json`: the episode settings and the union of methods and seeds asked for so far.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct EvalFile {
-    /// What every episode shares.
+    /// What every episode shares (a search depth not recorded is filled in,
+    /// [`EpisodeSettings::search_depth`]).
+    #[serde(deserialize_with = "episode_recorded")]
     pub episode: EpisodeSettings,
     /// Methods, in table order (new ones are appended on resume).
-    pub methods: Vec<String>,
+    #[serde(with = "crate::by_name::list")]
+    pub methods: Vec<Method>,
     /// Seed of trial 0.
     pub first_seed: u64,
     /// Trials per method (the largest asked for).
@@ -394,6 +387,26 @@ pub struct EvalFile {
 
 /// The file name of the settings.
 pub const EVAL_FILE: &str = "eval.json";
+
+/// [`EvalFile::episode`] as written, with the search depth of a file written before it was
+/// recorded (absent, or `""`) filled in: the task's rule of then ([`depth_before_recorded`]).
+/// A task that is not one is left to the settings' own error.
+fn episode_recorded<'de, D: Deserializer<'de>>(
+    deserializer: D,
+) -> Result<EpisodeSettings, D::Error> {
+    let mut value = serde_json::Value::deserialize(deserializer)?;
+    if let Some(episode) = value.as_object_mut()
+        && episode.get("search_depth").is_none_or(|d| d == "")
+        && let Some(scene) = episode
+            .get("task")
+            .and_then(serde_json::Value::as_str)
+            .and_then(|t| t.parse::<SceneKind>().ok())
+    {
+        let depth = depth_before_recorded(scene).name();
+        episode.insert("search_depth".into(), depth.into());
+    }
+    EpisodeSettings::deserialize(value).map_err(serde::de::Error::custom)
+}
 
 /// Read `dir/eval.json` if present.
 pub fn read_eval_file(dir: &Path) -> Result<Option<EvalFile>, EvalFileError> {
@@ -405,18 +418,10 @@ pub fn read_eval_file(dir: &Path) -> Result<Option<EvalFile>, EvalFileError> {
         Ok(text) => text,
         Err(source) => return Err(EvalFileError::Read { path, source }),
     };
-    let mut file: EvalFile = match serde_json::from_str(&text) {
-        Ok(file) => file,
-        Err(source) => return Err(EvalFileError::Parse { path, source }),
-    };
-    if file.episode.search_depth.is_empty() {
-        let scene: SceneKind = match file.episode.task.parse() {
-            Ok(scene) => scene,
-            Err(error) => return Err(EvalFileError::Task { path, error }),
-        };
-        file.episode.search_depth = depth_before_recorded(scene).name().to_string();
+    match serde_json::from_str(&text) {
+        Ok(file) => Ok(Some(file)),
+        Err(source) => Err(EvalFileError::Parse { path, source }),
     }
-    Ok(Some(file))
 }
 
 /// Write `dir/eval.json` for `settings`, merged with the file already there; errors when the
@@ -449,7 +454,7 @@ pub fn claim_dir(dir: &Path, settings: &EvalSettings) -> Result<EvalFile, EvalFi
         let mut methods = old.methods.clone();
         for m in &file.methods {
             if !methods.contains(m) {
-                methods.push(m.clone());
+                methods.push(*m);
             }
         }
         file.methods = methods;
@@ -467,29 +472,30 @@ pub fn claim_dir(dir: &Path, settings: &EvalSettings) -> Result<EvalFile, EvalFi
 }
 
 /// The directory of one episode.
-pub fn episode_dir(dir: &Path, method: &str, seed: u64) -> PathBuf {
+pub fn episode_dir(dir: &Path, method: Method, seed: u64) -> PathBuf {
     dir.join("episodes")
-        .join(method)
+        .join(method.name())
         .join(format!("seed-{seed}"))
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use dips_kernel::diffusion::SamplerConfig;
 
     fn settings() -> EpisodeSettings {
         EpisodeSettings {
-            task: "card".into(),
-            sampler: "ddpm:16".into(),
+            task: SceneKind::Card,
+            sampler: "ddpm:16".parse::<SamplerConfig>().unwrap().method,
             time_budget_s: 300.0,
             node_budget: 0,
             max_modes: None,
-            cost_to_come: "cumulative".into(),
-            search_depth: "modes-left".into(),
+            cost_to_come: CostToCome::Cumulative,
+            search_depth: SearchDepth::ModesLeft,
             alpha: None,
             beta: None,
             models: "/m".into(),
-            engine: "kernel".into(),
+            engine: EngineKind::Kernel,
             hand: HandKind::World,
             tracker_noise: None,
             card_goals: CardGoals::Capped,
@@ -516,6 +522,44 @@ mod tests {
             "planner_size",
             "a resumed run with another planner is refused"
         );
+    }
+
+    #[test]
+    fn a_search_depth_not_recorded_reads_as_the_tasks_of_then() {
+        let file = EvalFile {
+            episode: settings(),
+            methods: vec![Method::Dips, Method::DipsK1],
+            first_seed: 1000,
+            trials: 2,
+        };
+        let written = serde_json::to_value(&file).unwrap();
+        assert_eq!(written["methods"], serde_json::json!(["dips", "dips-k1"]));
+        assert_eq!(
+            serde_json::from_value::<EvalFile>(written.clone()).unwrap(),
+            file
+        );
+        for (task, then) in [
+            (SceneKind::Screwdriver, SearchDepth::Fixed),
+            (SceneKind::Card, SearchDepth::ModesLeft),
+        ] {
+            for recorded in [None, Some("")] {
+                let mut old = written.clone();
+                old["episode"]["task"] = task.name().into();
+                let episode = old["episode"].as_object_mut().unwrap();
+                match recorded {
+                    None => episode.remove("search_depth"),
+                    Some(d) => episode.insert("search_depth".into(), d.into()),
+                };
+                let read: EvalFile = serde_json::from_value(old).unwrap();
+                assert_eq!(read.episode.search_depth, then, "{task} {recorded:?}");
+            }
+        }
+        let mut bad = written;
+        bad["episode"]["search_depth"] = "deep".into();
+        let e = serde_json::from_value::<EvalFile>(bad)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("unknown search depth `deep`"), "{e}");
     }
 
     #[test]
@@ -570,7 +614,7 @@ mod tests {
     fn the_differing_setting_is_named_with_both_values() {
         let there = settings();
         let here = EpisodeSettings {
-            sampler: "ddim:8".into(),
+            sampler: SamplerConfig::ddim(8).method,
             ..settings()
         };
         assert_eq!(

@@ -5,7 +5,7 @@ use std::path::{Path, PathBuf};
 
 use dips_exec::episode::episode_success;
 use dips_fs::write_atomic;
-use dips_kernel::name::UnknownValue;
+use dips_planning::online::Method;
 use dips_plot::{BoxPlot, BoxSeries, PlotError};
 use dips_report::EpisodeFile;
 use dips_world::scenes::SceneKind;
@@ -23,14 +23,6 @@ pub enum SummaryError {
     NoEvalFile {
         /// The directory.
         dir: PathBuf,
-    },
-    /// `eval.json` names an unknown task.
-    #[error("{}: {error}", file.display())]
-    Task {
-        /// The directory's `eval.json`.
-        file: PathBuf,
-        /// The task it names.
-        error: UnknownValue,
     },
     /// An episode's `wall.json` is not one.
     #[error("{} is not a wall-time file", file.display())]
@@ -91,8 +83,9 @@ pub enum SummaryError {
 /// One trial in `results.json`.
 #[derive(Debug, Clone, Serialize)]
 pub struct Trial {
-    /// Method name.
-    pub method: String,
+    /// The method.
+    #[serde(with = "crate::by_name")]
+    pub method: Method,
     /// Seed.
     pub seed: u64,
     /// The outcome (final yaw in rad, or distance to the goal in cm); `None` when the episode
@@ -172,8 +165,9 @@ fn quantile(sorted: &[f64], q: f64) -> f64 {
 /// One method's row.
 #[derive(Debug, Clone, Serialize)]
 pub struct MethodSummary {
-    /// Method name.
-    pub method: String,
+    /// The method.
+    #[serde(with = "crate::by_name")]
+    pub method: Method,
     /// Finished trials.
     pub trials: usize,
     /// Trials that ended with an error.
@@ -195,8 +189,9 @@ pub struct MethodSummary {
 /// `results.json`.
 #[derive(Debug, Clone, Serialize)]
 pub struct Summary {
-    /// Task name.
-    pub task: String,
+    /// The task.
+    #[serde(with = "crate::by_name")]
+    pub task: SceneKind,
     /// The evaluation's settings.
     pub eval: EvalFile,
     /// Its registration under a protocol (`registration.json`), if it ran under one.
@@ -216,7 +211,7 @@ pub struct Summary {
 
 fn read_trial(
     dir: &Path,
-    method: &str,
+    method: Method,
     seed: u64,
     scene: SceneKind,
 ) -> Result<Option<Trial>, SummaryError> {
@@ -230,7 +225,7 @@ fn read_trial(
     })?;
     if let Some(error) = wall.error {
         return Ok(Some(Trial {
-            method: method.to_string(),
+            method,
             seed,
             outcome: None,
             valid: false,
@@ -257,7 +252,7 @@ fn read_trial(
     };
     let planning_s = r.planning_times();
     Ok(Some(Trial {
-        method: r.method,
+        method,
         seed: r.seed,
         outcome,
         valid: r.valid,
@@ -276,17 +271,13 @@ pub fn summarize(dir: &Path) -> Result<Summary, SummaryError> {
     let eval = read_eval_file(dir)?.ok_or_else(|| SummaryError::NoEvalFile {
         dir: dir.to_path_buf(),
     })?;
-    let task = eval.episode.task.clone();
-    let scene: SceneKind = task.parse().map_err(|error| SummaryError::Task {
-        file: dir.join(EVAL_FILE),
-        error,
-    })?;
+    let task = eval.episode.task;
     let registration = read_registration(dir)?;
     let mut trials = Vec::new();
     let mut methods = Vec::new();
     for m in &eval.methods {
         let mine: Vec<Trial> = (0..eval.trials)
-            .map(|i| read_trial(dir, m, eval.first_seed + i as u64, scene))
+            .map(|i| read_trial(dir, *m, eval.first_seed + i as u64, task))
             .filter_map(Result::transpose)
             .collect::<Result<_, _>>()?;
         let outcomes: Vec<f64> = mine.iter().filter_map(|t| t.outcome).collect();
@@ -294,7 +285,7 @@ pub fn summarize(dir: &Path) -> Result<Summary, SummaryError> {
         let csvto: Vec<f64> = mine.iter().filter_map(|t| t.csvto_step_median_s).collect();
         let wall: Vec<f64> = mine.iter().map(|t| t.wall_s).collect();
         methods.push(MethodSummary {
-            method: m.clone(),
+            method: *m,
             trials: mine.len(),
             errors: mine.iter().filter(|t| t.error.is_some()).count(),
             valid: mine.iter().filter(|t| t.valid).count(),
@@ -307,10 +298,9 @@ pub fn summarize(dir: &Path) -> Result<Summary, SummaryError> {
         trials.extend(mine);
     }
     let summary = Summary {
-        outcome: if task == "screwdriver" {
-            "final yaw (rad; clockwise is negative, the goal is to turn)"
-        } else {
-            "final distance of the card to its goal (cm)"
+        outcome: match task {
+            SceneKind::Screwdriver => "final yaw (rad; clockwise is negative, the goal is to turn)",
+            SceneKind::Card => "final distance of the card to its goal (cm)",
         },
         lower_is_better: true,
         episode_wall_total_s: trials.iter().map(|t| t.wall_s).sum(),
@@ -349,12 +339,12 @@ pub fn summarize(dir: &Path) -> Result<Summary, SummaryError> {
 }
 
 fn figures(s: &Summary) -> Vec<(&'static str, BoxPlot)> {
-    let screwdriver = s.task == "screwdriver";
+    let screwdriver = s.task == SceneKind::Screwdriver;
     let per_method = |f: &dyn Fn(&Trial) -> Vec<f64>| -> Vec<BoxSeries> {
         s.methods
             .iter()
             .map(|m| BoxSeries {
-                label: m.method.clone(),
+                label: m.method.to_string(),
                 values: s
                     .trials
                     .iter()
@@ -423,7 +413,7 @@ pub enum Shortfall {
     /// A method has fewer finished trials than expected.
     Unfinished {
         /// The method.
-        method: String,
+        method: Method,
         /// Its finished trials.
         finished: usize,
         /// The trials expected.
@@ -469,7 +459,7 @@ pub fn shortfall(s: &Summary, asked: Option<usize>) -> Vec<Shortfall> {
     for m in &s.methods {
         if m.trials < expected {
             lines.push(Shortfall::Unfinished {
-                method: m.method.clone(),
+                method: m.method,
                 finished: m.trials,
                 expected,
             });
@@ -509,7 +499,7 @@ fn registration_line(r: &Registration) -> String {
 
 /// The Markdown table of a summary.
 pub fn markdown(s: &Summary) -> String {
-    let screwdriver = s.task == "screwdriver";
+    let screwdriver = s.task == SceneKind::Screwdriver;
     let (what, unit, digits) = if screwdriver {
         ("final yaw", "rad", 3)
     } else {
@@ -566,14 +556,14 @@ pub fn markdown(s: &Summary) -> String {
             fmt_opt(m.wall_s.map(|w| w.median), 0),
         ));
     }
-    if screwdriver && let Some(dips) = s.methods.iter().find(|m| m.method == "dips") {
+    if screwdriver && let Some(dips) = s.methods.iter().find(|m| m.method == Method::Dips) {
         let turned = |m: &MethodSummary| m.outcome.map(|o| -o.mean);
         if let Some(d) = turned(dips) {
             out.push_str("\nTurned by `dips` relative to each other method (mean −yaw): ");
             let parts: Vec<String> = s
                 .methods
                 .iter()
-                .filter(|m| m.method != "dips")
+                .filter(|m| m.method != Method::Dips)
                 .filter_map(|m| turned(m).map(|t| (m, t)))
                 .map(|(m, t)| format!("{:+.0} % vs {}", 100.0 * (d - t) / t.abs(), m.method))
                 .collect();

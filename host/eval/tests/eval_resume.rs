@@ -92,7 +92,7 @@ fn a_killed_eval_resumes_without_redoing_episodes() {
     // every trial's own report linked; every file it references exists beside it.
     let options = ReportOptions {
         episodes: EpisodeReports::All,
-        animate: vec!["csvto-sampled".into()],
+        animate: vec![Method::CsvtoSampled],
     };
     let mut calls = 0;
     write_report(&dir, &summary, &options, &mut |_, _| calls += 1).unwrap();
@@ -106,7 +106,7 @@ fn a_killed_eval_resumes_without_redoing_episodes() {
     ] {
         assert!(html.contains(part), "report lacks {part}");
     }
-    let median = median_trial(&summary, "csvto-sampled").unwrap().seed;
+    let median = median_trial(&summary, Method::CsvtoSampled).unwrap().seed;
     let files = dips_report::html::referenced_files(&html);
     assert!(files.contains(&format!("episodes/csvto-sampled/seed-{median}/episode.gif")));
     for seed in [1000, 1001, 1002] {
@@ -158,6 +158,11 @@ fn a_killed_eval_resumes_without_redoing_episodes() {
     std::fs::write(&path, serde_json::to_string(&old).unwrap()).unwrap();
     let fourth = run_eval(&s, &dir).unwrap();
     assert_eq!((fourth.ran, fourth.skipped), (0, 3));
+    // And so does one that recorded it as "".
+    old["episode"]["search_depth"] = "".into();
+    std::fs::write(&path, serde_json::to_string(&old).unwrap()).unwrap();
+    let fifth = run_eval(&s, &dir).unwrap();
+    assert_eq!((fifth.ran, fifth.skipped), (0, 3));
     let _ = std::fs::remove_dir_all(&dir);
 }
 
@@ -170,13 +175,9 @@ fn every_method_runs_one_mode() {
     assert_eq!(report.errors, 0);
     let summary = summarize(&dir).unwrap();
     for (m, row) in Method::ALL.iter().zip(&summary.methods) {
-        assert_eq!(row.method, m.name());
+        assert_eq!(row.method, *m);
         assert_eq!(row.trials, 1);
-        let trial = summary
-            .trials
-            .iter()
-            .find(|t| t.method == m.name())
-            .unwrap();
+        let trial = summary.trials.iter().find(|t| t.method == *m).unwrap();
         assert_eq!(trial.modes.len(), 1, "{}: {:?}", m.name(), trial.modes);
         assert!(trial.outcome.is_some_and(f64::is_finite), "{}", m.name());
         // Searching methods plan once before their mode; fixed sequences never plan.
