@@ -20,18 +20,23 @@ PROBE = "target/release/examples/mode_probe"
 MODELS = ["onnx/models/card-paper", "onnx/models/card-paper-seed1", "onnx/models/card-paper-seed2"]
 SAMPLER = "ddpm:16"
 LINE = re.compile(r"start (\S+): executed (\S+), diffused (\S+);")
+PROFILE = re.compile(r"profile, diffused:\s+(.*)$")
 
 
 def probe(models, data, mode):
     out = subprocess.run(
         [PROBE, "--task", "card", "--models", models, "--sampler", SAMPLER, "--demos", data,
-         "--held-out", "--mode", mode, "--limit", "1000"],
+         "--held-out", "--mode", mode, "--limit", "1000", "--profile"],
         check=True, capture_output=True, text=True).stdout
     rows = []
     for line in out.splitlines():
         m = LINE.search(line)
         if m:
             rows.append([float(v.rstrip(",:")) * 100.0 for v in m.groups()])
+        p = PROFILE.search(line)
+        if p and rows:
+            profile = [float(v) * 100.0 for v in p.group(1).split()]
+            rows[-1] += [profile[1], profile[-1] - profile[1]]
     return rows
 
 
@@ -42,9 +47,9 @@ def main():
     for models in MODELS:
         rows = [r for mode in ("index", "middle", "both") for r in probe(models, data, mode)]
         bins = {}
-        for start, executed, diffused in rows:
+        for start, executed, diffused, row1, after in rows:
             b = int(round(-start)) // 2 * 2
-            bins.setdefault(b, []).append((diffused, executed))
+            bins.setdefault(b, []).append((diffused, executed, row1, after))
         report["models"][models] = {
             "pushes": len(rows),
             "diffused_mean": round(st.mean(r[2] for r in rows), 3),
@@ -52,8 +57,10 @@ def main():
             "by_start": {
                 f"{b}-{b + 2} cm": {
                     "n": len(v),
-                    "diffused_mean": round(st.mean(d for d, _ in v), 3),
-                    "executed_mean": round(st.mean(e for _, e in v), 3),
+                    "diffused_mean": round(st.mean(r[0] for r in v), 3),
+                    "executed_mean": round(st.mean(r[1] for r in v), 3),
+                    "diffused_row1_mean": round(st.mean(r[2] for r in v), 3),
+                    "diffused_after_row1_mean": round(st.mean(r[3] for r in v), 3),
                 } for b, v in sorted(bins.items())},
         }
     json.dump(report, sys.stdout, indent=1)
