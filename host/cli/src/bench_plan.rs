@@ -5,6 +5,7 @@
 //! GPU). The calls of whole episodes, from every state an episode visits, are in
 //! `dips eval`'s table (planning median / p90).
 
+use dips_onnx::EngineKind;
 use std::time::Instant;
 
 use anyhow::anyhow;
@@ -17,7 +18,7 @@ use dips_world::scenes::SceneKind;
 use dips_world::world::World;
 use serde_json::json;
 
-use crate::model::{EngineArg, SimdArg};
+use crate::model::SimdArg;
 use crate::search_args::named;
 
 /// `dips bench plan`.
@@ -44,8 +45,8 @@ pub struct PlanBenchArgs {
     #[arg(long)]
     pub models: Option<std::path::PathBuf>,
     /// Engine that runs the models.
-    #[arg(long, value_enum, default_value_t = EngineArg::Kernel)]
-    pub engine: EngineArg,
+    #[arg(long, value_parser = crate::search_args::named::<EngineKind>(), default_value = "kernel")]
+    pub engine: EngineKind,
     /// Print JSON instead of readable `key: value` lines.
     #[arg(long)]
     pub json: bool,
@@ -69,7 +70,7 @@ pub fn run(args: &PlanBenchArgs) -> anyhow::Result<()> {
     let simd = args.simd.apply();
     let sampler = args.search.sampler;
     let dir = models_dir(args.models.as_deref(), task)?;
-    let mut models = Models::load(args.engine.into(), &dir, task)?;
+    let mut models = Models::load(args.engine, &dir, task)?;
     let threads = crate::model::threads(args.threads)?;
     models.set_threads(threads);
     models.check_sampler(&sampler, task)?;

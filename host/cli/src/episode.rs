@@ -2,6 +2,7 @@
 //! with `--hand mujoco`, on the MuJoCo hand (`docs/contracts.md` §5; the methods are
 //! `dips_planning::online`'s; the planner always models our world).
 
+use dips_onnx::EngineKind;
 use std::path::PathBuf;
 
 use anyhow::{Context, bail};
@@ -16,7 +17,6 @@ use dips_planning::{Models, PlanService, models_card_goals, models_dir};
 use dips_world::hand::Hands;
 use dips_world::scenes::SceneKind;
 
-use crate::model::EngineArg;
 use crate::search_args::{SearchArgs, named};
 
 /// Arguments of `dips episode`.
@@ -46,8 +46,8 @@ pub struct EpisodeArgs {
     #[arg(long)]
     pub models: Option<PathBuf>,
     /// Engine that runs the models.
-    #[arg(long, value_enum, default_value_t = EngineArg::Kernel)]
-    pub engine: EngineArg,
+    #[arg(long, value_parser = crate::search_args::named::<EngineKind>(), default_value = "kernel")]
+    pub engine: EngineKind,
     /// The search's flags.
     #[command(flatten)]
     pub search: SearchArgs,
@@ -103,7 +103,7 @@ pub fn run(args: EpisodeArgs, hands: &dyn Hands) -> anyhow::Result<()> {
         .with_context(|| format!("cannot create the output directory {}", args.out.display()))?;
     let models = if method.needs_models() {
         let dir = models_dir(args.models.as_deref(), task.task())?;
-        let mut models = Models::load(args.engine.into(), &dir, task.task())?;
+        let mut models = Models::load(args.engine, &dir, task.task())?;
         models.set_threads(crate::model::threads(args.threads)?);
         models.check_sampler(&sampler, task.task())?;
         Some(models)

@@ -1,6 +1,7 @@
 //! `dips eval`: the paper's experiments (`dips_eval`): many episodes per method on all cores,
 //! resumable and sharded, then `results.json`, `results.md` and the box plots.
 
+use dips_onnx::EngineKind;
 use std::path::PathBuf;
 
 use anyhow::Context;
@@ -15,7 +16,6 @@ use dips_planning::online::{Method, OnlineSettings};
 use dips_world::hand::Hands;
 use dips_world::scenes::SceneKind;
 
-use crate::model::EngineArg;
 use crate::search_args::named;
 
 /// Arguments of `dips eval`.
@@ -89,8 +89,8 @@ pub struct EvalArgs {
     #[arg(long)]
     pub models: Option<PathBuf>,
     /// Engine that runs the models.
-    #[arg(long, value_enum, default_value_t = EngineArg::Kernel)]
-    pub engine: EngineArg,
+    #[arg(long, value_parser = crate::search_args::named::<EngineKind>(), default_value = "kernel")]
+    pub engine: EngineKind,
     /// The search's flags.
     #[command(flatten)]
     pub search: crate::search_args::SearchArgs,
@@ -290,7 +290,7 @@ pub fn run(args: EvalArgs, hands: &dyn Hands) -> anyhow::Result<()> {
             planner_size: args.online.planner_size,
         },
         models: models_dir(args.models.as_deref(), task.task())?,
-        engine: args.engine.into(),
+        engine: args.engine,
         progress: crate::batch::progress_mode(args.quiet),
         stop_after: None,
         kernel: args.kernel.clone(),

@@ -34,8 +34,8 @@ pub enum ModelCommand {
         #[arg(long)]
         output: PathBuf,
         /// Which engine runs it.
-        #[arg(long, value_enum, default_value_t = EngineArg::Tract)]
-        engine: EngineArg,
+        #[arg(long, value_parser = crate::search_args::named::<EngineKind>(), default_value = "tract")]
+        engine: EngineKind,
     },
     /// Measure trained models on their held-out demos: coherence of diffused trajectories
     /// beside real ones, open-loop executions; writes `quality.json` into the models directory.
@@ -50,24 +50,6 @@ pub enum ModelCommand {
         #[arg(long)]
         out: PathBuf,
     },
-}
-
-/// The two inference engines.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
-pub enum EngineArg {
-    /// tract-onnx on the `.onnx` file.
-    Tract,
-    /// The `dips-kernel` interpreter on the lowered blob.
-    Kernel,
-}
-
-impl From<EngineArg> for EngineKind {
-    fn from(e: EngineArg) -> Self {
-        match e {
-            EngineArg::Tract => EngineKind::Tract,
-            EngineArg::Kernel => EngineKind::Kernel,
-        }
-    }
 }
 
 /// Which copies of the kernel interpreter's op kernels run (`--simd`).
@@ -145,7 +127,7 @@ pub fn run(args: ModelArgs) -> anyhow::Result<()> {
             output,
             engine,
         } => {
-            let mut e = AnyEngine::load(engine.into(), &file, &Expectation::default())
+            let mut e = AnyEngine::load(engine, &file, &Expectation::default())
                 .with_context(|| format!("loading {}", file.display()))?;
             let c = e.contract().clone();
             let io = TensorFile::read(&input)?;

@@ -2,6 +2,7 @@
 //! held-out demos (`dips_planning::quality`), and the model card that gathers them with the
 //! training report.
 
+use dips_onnx::EngineKind;
 use std::path::{Path, PathBuf};
 
 use anyhow::{Context, bail};
@@ -12,8 +13,6 @@ use dips_planning::quality::{QualityOptions, QualityReport, markdown, measure};
 use dips_train::REPORT_FILE;
 use dips_world::scenes::SceneKind;
 use serde_json::Value;
-
-use crate::model::EngineArg;
 
 /// The quality report's file name in a models directory.
 pub const QUALITY_FILE: &str = "quality.json";
@@ -50,8 +49,8 @@ pub struct QualityArgs {
     )]
     pub seed: u64,
     /// Engine that runs the denoiser.
-    #[arg(long, value_enum, default_value_t = EngineArg::Kernel)]
-    pub engine: EngineArg,
+    #[arg(long, value_parser = crate::search_args::named::<EngineKind>(), default_value = "kernel")]
+    pub engine: EngineKind,
 }
 
 /// Arguments of `dips model card`.
@@ -93,7 +92,7 @@ pub fn run_quality(args: QualityArgs) -> anyhow::Result<()> {
         ddim_steps: args.ddim,
         open_loop_trials: args.trials,
         seed: args.seed,
-        engine: args.engine.into(),
+        engine: args.engine,
         drop_modes_after_invalid: report["settings"]["drop_modes_after_invalid"]
             .as_bool()
             .unwrap_or(false),

@@ -13,6 +13,7 @@ use dips_kernel::diffusion::SamplerConfig;
 use dips_kernel::mode::Task;
 use dips_kernel::search::{CostToCome, SearchOverrides};
 use dips_kernel::task::CardGoals;
+use dips_onnx::EngineKind;
 use dips_planning::online::{Method, SearchDepth};
 use dips_planning::sized::PlannerSize;
 use dips_planning::stop_rule::StopRule;
@@ -106,6 +107,14 @@ impl Named for SearchDepth {
     const HELP: &'static [&'static str] = &[
         "The task's mode limit on every call (the paper's screwdriver: 7 throughout)",
         "The modes the episode has left (the paper's card)",
+    ];
+}
+
+impl Named for EngineKind {
+    const NAMES: &'static [&'static str] = &EngineKind::NAMES;
+    const HELP: &'static [&'static str] = &[
+        "tract-onnx on the `.onnx` file",
+        "The dips-kernel interpreter on the lowered blob",
     ];
 }
 
@@ -236,7 +245,7 @@ pub struct OnlineArgs {
     pub search_depth: Option<SearchDepth>,
     /// When a searching method stops before the mode limit: `goal-reached` (a plan holds no
     /// mode; the paper's) or `no-gain` (also when the plan's expected end is no nearer the
-    /// goal than here; ours, `docs/online.md`, "Stopping").
+    /// goal than here; ours, `docs/online.md`, "Stopping and the planner's size").
     #[arg(long, value_parser = named::<StopRule>(), default_value = "goal-reached")]
     pub stop_rule: StopRule,
     /// The in-process planner's capacities: `paper` (the firmware's `PaperPlanner`, 512
