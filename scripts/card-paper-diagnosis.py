@@ -45,7 +45,7 @@ def card_y(state):
 def episode_figures(results):
     pushes, after_third, counts, first_mode_error, believed = [], [], [], [], []
     first_status, first_end = {}, []
-    stopped, first_expanded = 0, []
+    stopped, first_expanded, first_seconds = 0, [], []
     for r in results:
         plans = r.get("plans", [])
         if plans:
@@ -56,6 +56,7 @@ def episode_figures(results):
             if plans[0]["expected_terminal_state"][9] is not None:
                 first_end.append(plans[0]["expected_terminal_state"][9] * 100.0)
             first_expanded.append(plans[0]["nodes_expanded"])
+            first_seconds.append(plans[0]["seconds"])
             # `--stop-rule no-gain`: the episode stopped instead of executing a plan.
             stopped += any(p.get("stopped_no_gain", False) for p in plans)
         ys = []
@@ -94,6 +95,9 @@ def episode_figures(results):
         "first_call_status": first_status,
         "first_plan_expected_end_cm": {"mean": mean(first_end), "n": len(first_end)},
         "first_call_nodes_expanded": {"mean": mean(first_expanded), "n": len(first_expanded)},
+        "first_call_seconds": {"mean": mean(first_seconds), "n": len(first_seconds),
+                               "min": round(min(first_seconds), 1) if first_seconds else None,
+                               "max": round(max(first_seconds), 1) if first_seconds else None},
         "trials_stopped_no_gain": stopped,
     }
 
