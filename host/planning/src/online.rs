@@ -490,7 +490,6 @@ fn plan_call<H: Hand + ?Sized>(
         .iter()
         .filter_map(|&id: &ModeId| Mode::from_id(task, id))
         .collect();
-    let gain = PlanGain::of(task, &start, goal, card_goals, report.expected_progress);
     let record = PlanRecord {
         executed: executed.len(),
         goal,
@@ -521,7 +520,8 @@ fn plan_call<H: Hand + ?Sized>(
         }),
         stopped_no_gain: settings.stop_rule == StopRule::NoGain
             && !modes.is_empty()
-            && gain.is_none_or(|g| g.no_gain()),
+            && PlanGain::of(task, &start, goal, card_goals, report.expected_progress)
+                .is_none_or(|g| g.no_gain()),
     };
     Ok((modes, record))
 }
