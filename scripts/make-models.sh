@@ -19,6 +19,9 @@
 # CARD_GOALS (default capped, ours): `paper` makes the card's demos with the paper's goals
 # (`dips datagen --card-goals paper`: every push aims 2 cm on) into WORK/data/card-paper and
 # writes onnx/models/card-paper[-seed<SEED>]/ (docs/training.md, "The paper's card").
+# OBJECT_FRAME (default world): `segment-start` trains denoisers that measure the object from
+# each segment's start (`dips train --object-frame`, docs/training.md, "The card's short
+# pushes") from the same data, into onnx/models/<name>-start[-seed<SEED>]/.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 WORK=${WORK:-target/models-work}
@@ -32,18 +35,30 @@ case "$CARD_GOALS" in paper | capped) ;; *)
   exit 2
   ;;
 esac
-# A task's data and model name: the card with the paper's goals is card-paper.
-name() { [[ $1 == card && $CARD_GOALS == paper ]] && echo "card-paper" || echo "$1"; }
+OBJECT_FRAME=${OBJECT_FRAME:-world}
+case "$OBJECT_FRAME" in world | segment-start) ;; *)
+  echo "OBJECT_FRAME=$OBJECT_FRAME: expected world or segment-start" >&2
+  exit 2
+  ;;
+esac
+# A task's data name: the card with the paper's goals is card-paper.
+data_name() { [[ $1 == card && $CARD_GOALS == paper ]] && echo "card-paper" || echo "$1"; }
+# A task's model name: the data's, with -start for models in the segment-start frame.
+name() { [[ $OBJECT_FRAME == segment-start ]] && echo "$(data_name "$1")-start" || data_name "$1"; }
 # Where a task's models of this seed are trained and where they are shipped.
 suffix() { [[ $SEED == 0 ]] && echo "" || echo "-seed$SEED"; }
 work_models() { echo "$WORK/models/$(name "$1")$(suffix)"; }
 shipped() { echo "onnx/models/$(name "$1")$(suffix)"; }
-data() { echo "$WORK/data/$(name "$1")"; }
+data() { echo "$WORK/data/$(data_name "$1")"; }
 # The shipped default models' folder holds their settings; every other folder gets a copy.
 own_settings() { [[ $(shipped "$1") == "onnx/models/$1" ]]; }
 
-cargo build --release -p dips-cli
-DIPS=target/release/dips
+# DIPS: a dips binary to use (default: build target/release/dips), e.g. a copy that a later
+# build cannot replace while a long run goes on.
+if [[ -z ${DIPS:-} ]]; then
+  cargo build --release -p dips-cli
+  DIPS=target/release/dips
+fi
 
 for task in "${TASK_LIST[@]}"; do
   echo "== datagen $task (${DEMOS[$task]} demos)"
@@ -63,38 +78,49 @@ for task in "${TASK_LIST[@]}"; do
   log="$WORK/logs/train-$(name "$task")$(suffix).log"
   echo "== train $(name "$task"), seed $SEED (log: $log)"
   "$DIPS" train --task "$task" --data "$(data "$task")" --out "$(work_models "$task")" \
-    --settings "onnx/models/$task/settings.json" --seed "$SEED" --quiet > "$log" 2>&1 &
+    --settings "onnx/models/$task/settings.json" --seed "$SEED" --object-frame "$OBJECT_FRAME" \
+    --quiet > "$log" 2>&1 &
   pids+=($!)
 done
 for p in "${pids[@]}"; do wait "$p"; done
 
-pids=()
-for task in "${TASK_LIST[@]}"; do
-  log="$WORK/logs/policy-$(name "$task")$(suffix).log"
-  echo "== train the diffusion-policy baseline for $(name "$task"), seed $SEED (log: $log)"
-  "$DIPS" train --policy --task "$task" --data "$(data "$task")" \
-    --out "$WORK/models/$(name "$task")-policy$(suffix)" --settings "onnx/models/$task/policy/settings.json" \
-    --seed "$SEED" --quiet > "$log" 2>&1 &
-  pids+=($!)
-done
-for p in "${pids[@]}"; do wait "$p"; done
-for task in "${TASK_LIST[@]}"; do
-  mkdir -p "$(shipped "$task")/policy"
-  own_settings "$task" || cp "onnx/models/$task/policy/settings.json" "$(shipped "$task")/policy/"
-  for f in denoiser.onnx train_report.json; do
-    cp "$WORK/models/$(name "$task")-policy$(suffix)/$f" "$(shipped "$task")/policy/$f"
+# The Diffusion Policy baseline has no start frame: models in the segment-start frame share
+# the world-frame folder's (onnx/models/<data name>[-seed<SEED>]/policy/) and train none.
+if [[ $OBJECT_FRAME == world ]]; then
+  pids=()
+  for task in "${TASK_LIST[@]}"; do
+    log="$WORK/logs/policy-$(name "$task")$(suffix).log"
+    echo "== train the diffusion-policy baseline for $(name "$task"), seed $SEED (log: $log)"
+    "$DIPS" train --policy --task "$task" --data "$(data "$task")" \
+      --out "$WORK/models/$(name "$task")-policy$(suffix)" --settings "onnx/models/$task/policy/settings.json" \
+      --seed "$SEED" --quiet > "$log" 2>&1 &
+    pids+=($!)
   done
-done
+  for p in "${pids[@]}"; do wait "$p"; done
+  for task in "${TASK_LIST[@]}"; do
+    mkdir -p "$(shipped "$task")/policy"
+    own_settings "$task" || cp "onnx/models/$task/policy/settings.json" "$(shipped "$task")/policy/"
+    for f in denoiser.onnx train_report.json; do
+      cp "$WORK/models/$(name "$task")-policy$(suffix)/$f" "$(shipped "$task")/policy/$f"
+    done
+  done
+fi
 
 for task in "${TASK_LIST[@]}"; do
   out="$(shipped "$task")"
   mkdir -p "$out"
-  own_settings "$task" || cp "onnx/models/$task/settings.json" "$out/settings.json"
+  if [[ $OBJECT_FRAME == segment-start ]]; then
+    # The settings as trained, frame included (the task's file does not name it).
+    python3 -c 'import json, sys; print(json.dumps(json.load(open(sys.argv[1]))["settings"], indent=2))' \
+      "$(work_models "$task")/train_report.json" > "$out/settings.json"
+  else
+    own_settings "$task" || cp "onnx/models/$task/settings.json" "$out/settings.json"
+  fi
   for f in denoiser.onnx discriminator.onnx prior.json train_report.json; do
     cp "$(work_models "$task")/$f" "$out/$f"
   done
   echo "== quality $task"
   "$DIPS" model quality --task "$task" --models "$out" --data "$(data "$task")"
   "$DIPS" model card --task "$task" --models "$out" \
-    --command "SEED=$SEED TASKS=$task CARD_GOALS=$CARD_GOALS scripts/make-models.sh"
+    --command "SEED=$SEED TASKS=$task CARD_GOALS=$CARD_GOALS OBJECT_FRAME=$OBJECT_FRAME scripts/make-models.sh"
 done

@@ -34,6 +34,91 @@ impl ModelDims {
     }
 }
 
+/// Where a denoiser's object columns are measured from (contract metadata `dips.object_frame`).
+///
+/// The diffusion sampler ([`crate::diffusion::sample`]) applies it, so every caller of the
+/// sampler gets raw §2 rows whatever the model's frame.
+#[derive(
+    Debug, Clone, Copy, PartialEq, Eq, Hash, Default, serde::Serialize, serde::Deserialize,
+)]
+#[serde(rename_all = "kebab-case")]
+pub enum ObjectFrame {
+    /// The world's: every row holds the object's pose as it is (every model before the
+    /// frame existed).
+    #[default]
+    World,
+    /// The segment's start: the object's two plain coordinates (the card's `x, y`; columns
+    /// [`crate::mode::RowLayout::object`] and the one after it) of every row are measured from
+    /// row 0's, so row 0 holds zeros there and a segment says how far the object moves, not
+    /// where it is. Its angle stays the world's. The sampler inpaints the start with those
+    /// columns at zero and adds the start's back to every row of the result.
+    SegmentStart,
+}
+
+impl ObjectFrame {
+    /// Both frames.
+    pub const ALL: [ObjectFrame; 2] = [ObjectFrame::World, ObjectFrame::SegmentStart];
+
+    /// The frame's name in model metadata, settings and reports: `world` or `segment-start`.
+    pub const fn name(self) -> &'static str {
+        match self {
+            ObjectFrame::World => "world",
+            ObjectFrame::SegmentStart => "segment-start",
+        }
+    }
+
+    /// Both names, in [`ObjectFrame::ALL`] order.
+    pub const NAMES: [&'static str; 2] =
+        [ObjectFrame::World.name(), ObjectFrame::SegmentStart.name()];
+
+    /// The frame's code in a lowered model blob (`nn::format::Meta::object_frame`).
+    pub const fn code(self) -> u8 {
+        match self {
+            ObjectFrame::World => 0,
+            ObjectFrame::SegmentStart => 1,
+        }
+    }
+
+    /// The frame of a blob code, `None` for an unknown one.
+    pub const fn from_code(code: u8) -> Option<Self> {
+        match code {
+            0 => Some(ObjectFrame::World),
+            1 => Some(ObjectFrame::SegmentStart),
+            _ => None,
+        }
+    }
+
+    /// The state columns this frame measures from row 0, for segments of `fingers` fingers
+    /// (empty for [`ObjectFrame::World`]).
+    pub const fn start_columns(self, fingers: usize) -> core::ops::Range<usize> {
+        let first = crate::mode::RowLayout {
+            fingers,
+            env_force: false,
+        }
+        .object();
+        match self {
+            ObjectFrame::World => first..first,
+            ObjectFrame::SegmentStart => first..first + 2,
+        }
+    }
+}
+
+impl core::str::FromStr for ObjectFrame {
+    type Err = crate::name::UnknownValue;
+
+    /// A frame by its name ([`ObjectFrame::name`]); the error names the value and both names.
+    fn from_str(name: &str) -> Result<Self, Self::Err> {
+        crate::name::UnknownValue::find("object frame", name, &Self::ALL, &Self::NAMES, Self::name)
+    }
+}
+
+impl core::fmt::Display for ObjectFrame {
+    /// The frame's name ([`ObjectFrame::name`]).
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
 /// Per-column normalization of the contract: `normalized = (raw - mean) / std`.
 #[derive(Debug, Clone, Copy)]
 pub struct Normalization<'a> {
@@ -53,6 +138,12 @@ pub trait DenoiserEngine {
 
     /// The model's column normalization.
     fn normalization(&self) -> Normalization<'_>;
+
+    /// Where the model measures the object's columns from (`dips.object_frame`); the world's
+    /// unless the model says otherwise.
+    fn object_frame(&self) -> ObjectFrame {
+        ObjectFrame::World
+    }
 
     /// The largest batch one call accepts (`usize::MAX` when unbounded). The batch counts
     /// samples: the diffusion sampler evaluates each trajectory's conditioned and
@@ -111,6 +202,10 @@ impl<E: DenoiserEngine + ?Sized> DenoiserEngine for &mut E {
 
     fn normalization(&self) -> Normalization<'_> {
         (**self).normalization()
+    }
+
+    fn object_frame(&self) -> ObjectFrame {
+        (**self).object_frame()
     }
 
     fn max_batch(&self) -> usize {

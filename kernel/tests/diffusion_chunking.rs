@@ -1,8 +1,10 @@
 //! Property: for any model dimensions, batch limits and scratch sizes, the sampler's output is
-//! bit-identical to one big batch, and inpainting holds the start states exactly.
+//! bit-identical to one big batch, and inpainting holds the start states exactly; a model in the
+//! segment-start object frame samples what the same model in the world's frame samples from
+//! starts with the object at the origin, moved to the start.
 
 use dips_kernel::diffusion::*;
-use dips_kernel::engine::{DenoiserEngine, ModelDims, Normalization};
+use dips_kernel::engine::{DenoiserEngine, ModelDims, Normalization, ObjectFrame};
 use dips_kernel::rng::KernelRng;
 use proptest::prelude::*;
 
@@ -13,6 +15,7 @@ struct Linear {
     mean: Vec<f32>,
     std: Vec<f32>,
     max_batch: usize,
+    frame: ObjectFrame,
 }
 
 impl DenoiserEngine for Linear {
@@ -31,6 +34,10 @@ impl DenoiserEngine for Linear {
 
     fn max_batch(&self) -> usize {
         self.max_batch
+    }
+
+    fn object_frame(&self) -> ObjectFrame {
+        self.frame
     }
 
     fn predict_eps(
@@ -58,13 +65,28 @@ impl DenoiserEngine for Linear {
     }
 }
 
+fn starts_of(dims: ModelDims, n: usize) -> Vec<f32> {
+    (0..n * dims.state_dim)
+        .map(|i| i as f32 * 0.3 - 2.0)
+        .collect()
+}
+
 fn run(engine: &mut Linear, config: &SamplerConfig, n: usize, chunk: usize, seed: u64) -> Vec<f32> {
+    let starts = starts_of(engine.dims, n);
+    run_from(engine, config, &starts, n, chunk, seed)
+}
+
+fn run_from(
+    engine: &mut Linear,
+    config: &SamplerConfig,
+    starts: &[f32],
+    n: usize,
+    chunk: usize,
+    seed: u64,
+) -> Vec<f32> {
     let dims = engine.dims;
     let context: Vec<f32> = (0..n * dims.fingers)
         .map(|i| if i % 3 == 0 { 1.0 } else { -1.0 })
-        .collect();
-    let starts: Vec<f32> = (0..n * dims.state_dim)
-        .map(|i| i as f32 * 0.3 - 2.0)
         .collect();
     let layout = ScratchLayout::new(dims, chunk);
     let mut buf = vec![0.0f32; layout.total()];
@@ -73,7 +95,7 @@ fn run(engine: &mut Linear, config: &SamplerConfig, n: usize, chunk: usize, seed
     let mut rng = KernelRng::seed_from_u64(seed);
     let request = SampleRequest {
         context: &context,
-        start_states: Some(&starts),
+        start_states: Some(starts),
     };
     sample(engine, config, &request, &mut rng, &mut scratch, &mut out).unwrap();
     for (traj, s0) in out
@@ -114,6 +136,7 @@ proptest! {
             mean: (0..d).map(|j| j as f32 * 0.5 - 1.0).collect(),
             std: (0..d).map(|j| 0.5 + j as f32 * 0.25).collect(),
             max_batch,
+            frame: ObjectFrame::World,
         };
         let config = SamplerConfig {
             method: if ddim {
@@ -129,5 +152,46 @@ proptest! {
         let bits = |v: &[f32]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
         prop_assert_eq!(bits(&whole), bits(&split));
         prop_assert!(whole.iter().all(|v| v.is_finite()));
+    }
+
+    #[test]
+    fn a_segment_start_model_samples_the_world_model_moved_to_the_start(
+        horizon in 1usize..5,
+        fingers in 1usize..4,
+        action_dim in 1usize..4,
+        steps in 1usize..12,
+        n in 1usize..6,
+        seed in any::<u64>(),
+    ) {
+        let state_dim = 4 * fingers + 4;
+        let dims = ModelDims { horizon, state_dim, action_dim, fingers, diffusion_steps: steps };
+        let d = dims.dim();
+        let mk = |frame| Linear {
+            dims,
+            mean: (0..d).map(|j| j as f32 * 0.5 - 1.0).collect(),
+            std: (0..d).map(|j| 0.5 + j as f32 * 0.25).collect(),
+            max_batch: usize::MAX,
+            frame,
+        };
+        let config = SamplerConfig::default();
+        let starts = starts_of(dims, n);
+        let cols = ObjectFrame::SegmentStart.start_columns(fingers);
+        prop_assert_eq!(cols.clone(), 4 * fingers..4 * fingers + 2);
+        let mut at_origin = starts.clone();
+        for s0 in at_origin.chunks_mut(state_dim) {
+            s0[cols.clone()].fill(0.0);
+        }
+        let relative = run_from(&mut mk(ObjectFrame::SegmentStart), &config, &starts, n, n, seed);
+        let world = run_from(&mut mk(ObjectFrame::World), &config, &at_origin, n, n, seed);
+        let td = dims.floats_per_trajectory();
+        for ((r, w), s0) in relative.chunks(td).zip(world.chunks(td)).zip(starts.chunks(state_dim)) {
+            prop_assert_eq!(&r[..state_dim], s0, "row 0 is the start, in the world's frame");
+            for (row, (rr, wr)) in r.chunks(d).zip(w.chunks(d)).enumerate().skip(1) {
+                for c in 0..d {
+                    let want = if cols.contains(&c) { wr[c] + s0[c] } else { wr[c] };
+                    prop_assert_eq!(rr[c].to_bits(), want.to_bits(), "row {} column {}", row, c);
+                }
+            }
+        }
     }
 }

@@ -24,6 +24,27 @@ pub const PSI_NEGATIVES_KEY: &str = "dips.psi_negatives";
 /// `capped` ([`card_goals`]).
 pub const CARD_GOALS_KEY: &str = "dips.card_goals";
 
+/// Denoiser metadata: where the model measures the object's columns from (`world` or
+/// `segment-start`, `dips_kernel::engine::ObjectFrame`). Models written before it existed have
+/// none and measure in the world's frame ([`object_frame`]).
+pub const OBJECT_FRAME_KEY: &str = "dips.object_frame";
+
+/// The object frame of a model ([`OBJECT_FRAME_KEY`]): the world's when the model does not say;
+/// an error when it names neither frame, or when a discriminator names one (the frame is the
+/// denoiser's; Ψ scores segments in the world's frame).
+pub fn object_frame(proto: &pb::ModelProto) -> Result<dips_kernel::engine::ObjectFrame> {
+    let Some(v) = proto
+        .metadata_props
+        .iter()
+        .find(|p| p.key == OBJECT_FRAME_KEY)
+    else {
+        return Ok(dips_kernel::engine::ObjectFrame::World);
+    };
+    v.value
+        .parse()
+        .map_err(|e| contract_err(format!("{OBJECT_FRAME_KEY}: {e}")))
+}
+
 /// The card goals a model was trained for ([`CARD_GOALS_KEY`]), `None` when the model does not
 /// say; an error when it names none of them.
 pub fn card_goals(proto: &pb::ModelProto) -> Result<Option<dips_kernel::task::CardGoals>> {
@@ -131,6 +152,8 @@ pub struct Contract {
     pub norm_std: Vec<f32>,
     /// `dips.columns`, D names.
     pub columns: Vec<String>,
+    /// `dips.object_frame` (the world's when absent; always the world's for a discriminator).
+    pub object_frame: dips_kernel::engine::ObjectFrame,
 }
 
 impl Contract {
@@ -251,6 +274,14 @@ impl Contract {
             norm_mean: weight(m.norm_mean)?,
             norm_std: weight(m.norm_std)?,
             columns,
+            object_frame: dips_kernel::engine::ObjectFrame::from_code(m.object_frame).ok_or_else(
+                || {
+                    contract_err(format!(
+                        "the blob's object frame code {} is unknown",
+                        m.object_frame
+                    ))
+                },
+            )?,
         };
         c.check_task()?;
         Ok(c)
@@ -483,6 +514,12 @@ pub fn validate(proto: &pb::ModelProto) -> Result<Contract> {
             columns.len()
         )));
     }
+    let object_frame = object_frame(proto)?;
+    if role == Role::Discriminator && object_frame != dips_kernel::engine::ObjectFrame::World {
+        return Err(contract_err(format!(
+            "{OBJECT_FRAME_KEY} is {object_frame} on a discriminator: Ψ scores segments in the world's frame"
+        )));
+    }
     let contract = Contract {
         role,
         task,
@@ -496,6 +533,7 @@ pub fn validate(proto: &pb::ModelProto) -> Result<Contract> {
         norm_mean,
         norm_std,
         columns,
+        object_frame,
     };
     contract.check_task()?;
     check_io(proto, &contract)?;

@@ -28,6 +28,10 @@ macro_rules! impl_engine_traits {
                 }
             }
 
+            fn object_frame(&self) -> dips_kernel::engine::ObjectFrame {
+                self.contract().object_frame
+            }
+
             fn max_batch(&self) -> usize {
                 usize::MAX
             }

@@ -114,6 +114,17 @@ fn contract_violations_name_the_field() {
     ))
     .unwrap_err();
     assert!(e.to_string().contains("dips.columns[0]"), "{e}");
+    // An object frame that is none of the two names both.
+    let mut m = with_meta("", "");
+    m.metadata_props.push(pb::StringStringEntryProto {
+        key: contract::OBJECT_FRAME_KEY.into(),
+        value: "rotating".into(),
+    });
+    let e = contract::validate(&m).unwrap_err().to_string();
+    assert!(
+        e.contains("dips.object_frame") && e.contains("rotating") && e.contains("segment-start"),
+        "{e}"
+    );
     let mut m = with_meta("", "");
     m.graph.as_mut().unwrap().input[1].name = "ctx".into();
     let e = contract::validate(&m).unwrap_err();
@@ -170,9 +181,20 @@ fn blob_version_checksum_and_truncation_are_typed_errors() {
         parse(&v),
         Err(NnError::UnsupportedVersion {
             found: 9,
-            supported: 1
+            supported: 2
         })
     );
+    // A blob of version 1 (before the object frame) is named as such.
+    v[4] = 1;
+    let e = parse(&v).unwrap_err();
+    assert_eq!(
+        e,
+        NnError::UnsupportedVersion {
+            found: 1,
+            supported: 2
+        }
+    );
+    assert!(e.to_string().contains("lower"), "{e}");
     let mut m = b.clone();
     m[0] = b'X';
     assert_eq!(parse(&m), Err(NnError::BadMagic));

@@ -39,6 +39,10 @@ pub struct TrainArgs {
     /// Denoiser batch size.
     #[arg(long)]
     pub batch: Option<usize>,
+    /// Where the denoiser measures the object from: `world` or `segment-start` (the object's
+    /// coordinates less the segment's start, `docs/training.md`).
+    #[arg(long)]
+    pub object_frame: Option<dips_kernel::engine::ObjectFrame>,
     /// Start over even when a checkpoint exists.
     #[arg(long)]
     pub fresh: bool,
@@ -77,6 +81,9 @@ pub fn run(args: TrainArgs) -> anyhow::Result<()> {
     }
     if let Some(b) = args.batch {
         settings.denoiser.batch = b;
+    }
+    if let Some(f) = args.object_frame {
+        settings.denoiser.object_frame = f;
     }
     let opts = RunOptions {
         progress: !args.quiet,

@@ -2,6 +2,7 @@
 //! yaw augmentation, the random inpainting masks and the forward-noised batches.
 
 use dips_dataset::{Dataset, mix64};
+use dips_kernel::engine::ObjectFrame;
 use dips_kernel::mode::{SegmentDims, Task};
 use dips_kernel::rng::KernelRng;
 
@@ -188,6 +189,26 @@ impl Normalizer {
         for row in x.chunks_exact_mut(d) {
             for ((v, m), s) in row.iter_mut().zip(&self.mean).zip(&self.std) {
                 *v = *v * s + m;
+            }
+        }
+    }
+}
+
+/// Move every trajectory of `s` (raw rows of `dims`) from the world's frame into `frame`: the
+/// columns the frame measures from the start ([`ObjectFrame::start_columns`]) are taken less
+/// their row 0's value in every row, so row 0 holds zeros there. The world's frame changes
+/// nothing. The sampler undoes it (`dips_kernel::diffusion::sample`).
+pub fn to_object_frame(s: &mut Samples, frame: ObjectFrame, dims: SegmentDims) {
+    let cols = frame.start_columns(dims.fingers);
+    let d = dims.dim();
+    if cols.is_empty() || cols.end > dims.state_dim || d == 0 {
+        return;
+    }
+    for traj in s.x.chunks_exact_mut(dims.floats()) {
+        let start: Vec<f32> = traj[cols.clone()].to_vec();
+        for row in traj.chunks_exact_mut(d) {
+            for (v, s0) in row[cols.clone()].iter_mut().zip(&start) {
+                *v -= s0;
             }
         }
     }

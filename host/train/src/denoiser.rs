@@ -8,12 +8,14 @@ use std::time::Instant;
 use burn::tensor::Device;
 use dips_dataset::Dataset;
 use dips_kernel::diffusion::schedule::fill_alpha_bar;
+use dips_kernel::engine::ObjectFrame;
 use dips_kernel::mode::{SegmentDims, Task};
 use dips_kernel::task::CardGoals;
 use serde::Serialize;
 
 use crate::data::{
     Normalizer, Samples, angle_columns, batch_indices, noise_batch, purpose, rotate_yaw, stream,
+    to_object_frame,
 };
 use crate::error::{Result, TrainError};
 use crate::net::{Denoiser, NetDims, tensor};
@@ -69,6 +71,8 @@ pub struct TrainedDenoiser {
     /// The card goals its demos were made with, written into the model as `dips.card_goals`
     /// ([`crate::run`] sets it for the card's planner model; `None`: not recorded).
     pub card_goals: Option<CardGoals>,
+    /// Where it measures the object from (`dips.object_frame`, written when not the world's).
+    pub object_frame: ObjectFrame,
 }
 
 impl TrainedDenoiser {
@@ -104,6 +108,7 @@ impl TrainedDenoiser {
             self.diffusion_steps,
             &self.norm,
             self.card_goals,
+            self.object_frame,
         )
     }
 }
@@ -225,9 +230,11 @@ pub fn train_denoiser(
     let started = Instant::now();
     let task = ds.task;
     let dims = ds.dims();
-    let (train, held) = split_samples(ds, settings)?;
-    let norm = Normalizer::fit(&train, task, settings.std_floor, settings.normalize_angles)?;
+    let (mut train, mut held) = split_samples(ds, settings)?;
     let s = &settings.denoiser;
+    to_object_frame(&mut train, s.object_frame, dims);
+    to_object_frame(&mut held, s.object_frame, dims);
+    let norm = Normalizer::fit(&train, task, settings.std_floor, settings.normalize_angles)?;
     let mut alpha_bar = vec![0f32; s.diffusion_steps];
     fill_alpha_bar(s.diffusion_steps, &mut alpha_bar);
 
@@ -369,6 +376,7 @@ pub fn train_denoiser(
         diffusion_steps: s.diffusion_steps,
         report,
         card_goals: None,
+        object_frame: s.object_frame,
     })
 }
 

@@ -181,6 +181,26 @@ pub fn diffuse_like(
     Ok(out)
 }
 
+/// Ψ's normalisation: the denoiser's when it measures in the world's frame (Ψ scores what the
+/// denoiser draws, so one normalisation serves both), else one fitted on the world-frame
+/// training rows: Ψ scores segments in the world's frame, and the denoiser's statistics of
+/// object motion from the start would put the object's level far out in its tails.
+fn psi_normalizer(
+    denoiser: &TrainedDenoiser,
+    train: &Samples,
+    settings: &TrainSettings,
+) -> Result<Normalizer> {
+    if denoiser.object_frame == dips_kernel::engine::ObjectFrame::World {
+        return Ok(denoiser.norm.clone());
+    }
+    Normalizer::fit(
+        train,
+        denoiser.task,
+        settings.std_floor,
+        settings.normalize_angles,
+    )
+}
+
 /// Area under the ROC curve of scores for positives versus negatives (ties count half).
 pub fn auc(pos: &[f32], neg: &[f32]) -> f32 {
     if pos.is_empty() || neg.is_empty() {
@@ -328,9 +348,11 @@ pub fn negative_samplers(settings: &TrainSettings, task: Task) -> Vec<String> {
         .collect()
 }
 
+#[allow(clippy::too_many_arguments)]
 fn pairs(
     real: Samples,
     denoiser: &TrainedDenoiser,
+    norm: &Normalizer,
     settings: &TrainSettings,
     cache: &Path,
     seed: u64,
@@ -387,8 +409,8 @@ fn pairs(
         seconds += secs;
     }
     let mut r = real.x;
-    denoiser.norm.normalize(&mut r);
-    denoiser.norm.normalize(&mut fake);
+    norm.normalize(&mut r);
+    norm.normalize(&mut fake);
     Ok((
         Pairs {
             real: r,
@@ -508,10 +530,12 @@ pub fn train_discriminator(
     let s = &settings.discriminator;
     let yaw = augment_columns(task, settings)?;
     let (train, held) = split_samples(ds, settings)?;
+    let norm = psi_normalizer(denoiser, &train, settings)?;
     let ckd = checkpoint_dir(out_dir)?;
     let (tp, mut sampling_s) = pairs(
         train.subset(s.samples, dims),
         denoiser,
+        &norm,
         settings,
         &ckd.join("disc_fakes_train.safetensors"),
         settings.seed,
@@ -522,6 +546,7 @@ pub fn train_discriminator(
         let (p, secs) = pairs(
             held.subset(s.eval_samples, dims),
             denoiser,
+            &norm,
             settings,
             &ckd.join("disc_fakes_held_out.safetensors"),
             settings.seed ^ 0x5eed,
@@ -599,12 +624,12 @@ pub fn train_discriminator(
         }
         if let Some((cos_col, sin_col)) = yaw {
             let mut rng = stream(settings.seed, purpose::DISC_AUGMENT, step as u64);
-            denoiser.norm.denormalize(&mut x);
+            norm.denormalize(&mut x);
             for traj in x.chunks_exact_mut(td) {
                 let delta = (rng.uniform_f32() * 2.0 - 1.0) * std::f32::consts::PI;
                 rotate_yaw(traj, dims.dim(), cos_col, sin_col, delta);
             }
-            denoiser.norm.normalize(&mut x);
+            norm.normalize(&mut x);
         }
         let w = if s.noised_inputs {
             let mut rng = stream(settings.seed, purpose::DISC_NOISE, step as u64);
@@ -651,7 +676,7 @@ pub fn train_discriminator(
         task,
         net,
         params,
-        norm: denoiser.norm.clone(),
+        norm,
         diffusion_steps: denoiser.diffusion_steps,
         negatives: negative_samplers(settings, task),
         report,

@@ -2,6 +2,7 @@
 
 use std::path::Path;
 
+use dips_kernel::engine::ObjectFrame;
 use dips_kernel::mode::Task;
 use dips_kernel::task::CardGoals;
 use prost::Message;
@@ -52,7 +53,8 @@ fn json<T: serde::Serialize>(v: &T) -> String {
 
 /// The denoiser as a contract-v1 ONNX model (batch axis symbolic), with the card goals its
 /// demos were made with as `dips.card_goals` when given
-/// ([`dips_onnx::contract::CARD_GOALS_KEY`]).
+/// ([`dips_onnx::contract::CARD_GOALS_KEY`]), and its object frame as `dips.object_frame`
+/// when it is not the world's ([`dips_onnx::contract::OBJECT_FRAME_KEY`]).
 pub fn denoiser_model(
     net: &Denoiser,
     params: &ParamStore,
@@ -60,6 +62,7 @@ pub fn denoiser_model(
     diffusion_steps: usize,
     norm: &Normalizer,
     card_goals: Option<CardGoals>,
+    object_frame: ObjectFrame,
 ) -> Result<pb::ModelProto> {
     let dims = net.dims();
     let mut g = Graph::default();
@@ -81,6 +84,12 @@ pub fn denoiser_model(
                 meta.push((
                     dips_onnx::contract::CARD_GOALS_KEY.to_string(),
                     goals.name().to_string(),
+                ));
+            }
+            if object_frame != ObjectFrame::World {
+                meta.push((
+                    dips_onnx::contract::OBJECT_FRAME_KEY.to_string(),
+                    object_frame.name().to_string(),
                 ));
             }
             meta

@@ -1,5 +1,6 @@
 //! Training settings and their validation.
 
+use dips_kernel::engine::ObjectFrame;
 use serde::{Deserialize, Serialize};
 
 use crate::error::{Result, TrainError};
@@ -92,6 +93,17 @@ pub struct DenoiserSettings {
     /// with no contact-mode input (the context is zero). Only the denoiser is trained.
     #[serde(default, skip_serializing_if = "std::ops::Not::not")]
     pub policy: bool,
+    /// Where the model measures the object's columns from (`dips.object_frame`): `world`, the
+    /// default, or `segment-start`, where every training trajectory's object coordinates are
+    /// taken less its row 0's ([`crate::data::to_object_frame`]), so the model learns how far
+    /// a mode moves the object, not where it ends (`docs/training.md`, "The card's short
+    /// pushes"). The sampler adds the start back (`dips_kernel::diffusion::sample`).
+    #[serde(default, skip_serializing_if = "is_world")]
+    pub object_frame: ObjectFrame,
+}
+
+fn is_world(f: &ObjectFrame) -> bool {
+    *f == ObjectFrame::World
 }
 
 fn default_start_given() -> f32 {
@@ -119,6 +131,7 @@ impl Default for DenoiserSettings {
             start_state_only: false,
             min_snr_gamma: None,
             policy: false,
+            object_frame: ObjectFrame::World,
         }
     }
 }
@@ -324,6 +337,12 @@ impl TrainSettings {
     /// Check every setting; the error names the field.
     pub fn validate(&self) -> Result<()> {
         self.net.validate()?;
+        if self.denoiser.policy && self.denoiser.object_frame != ObjectFrame::World {
+            return Err(bad(
+                "denoiser.object_frame",
+                "the Diffusion Policy baseline has no start to measure from; use world",
+            ));
+        }
         if let Some(sources) = &self.prior_sources {
             if sources.is_empty() {
                 return Err(bad(

@@ -188,6 +188,129 @@ fn check_export(task: Task, start_embed_dim: usize) {
     std::fs::remove_dir_all(&dir).unwrap();
 }
 
+/// A card denoiser in the segment-start frame: trained on the object's motion from each start,
+/// it says so in its metadata, both engines (tract and the lowered blob) report the frame, the
+/// sampler returns world-frame rows from the start, and Ψ, which scores world-frame segments,
+/// keeps the world's frame with a normalisation of its own.
+#[test]
+fn a_segment_start_denoiser_is_trained_exported_and_sampled_in_its_frame() {
+    use dips_kernel::diffusion::{
+        SampleRequest, SamplerConfig, SamplerScratch, ScratchLayout, sample,
+    };
+    use dips_kernel::engine::{DenoiserEngine, ObjectFrame};
+    let (dir, ds) = dataset(Task::Card, "object-frame", 6);
+    let mut s = tiny(Task::Card);
+    s.denoiser.steps = 20;
+    s.discriminator.steps = 5;
+    s.denoiser.object_frame = ObjectFrame::SegmentStart;
+    let opts = RunOptions::default();
+    let den = train_denoiser(&ds, &s, &dir, &opts).unwrap();
+    assert_eq!(den.object_frame, ObjectFrame::SegmentStart);
+    let world = {
+        let mut w = s.clone();
+        w.denoiser.object_frame = ObjectFrame::World;
+        train_denoiser(&ds, &w, &dir.join("world"), &opts).unwrap()
+    };
+    let cols = ObjectFrame::SegmentStart.start_columns(Task::Card.dims().fingers);
+    for c in cols.clone() {
+        assert_ne!(
+            den.norm.mean[c], world.norm.mean[c],
+            "column {c} is normalised as motion from the start"
+        );
+    }
+    let proto = den.onnx().unwrap();
+    assert_eq!(
+        dips_onnx::contract::object_frame(&proto).unwrap(),
+        ObjectFrame::SegmentStart
+    );
+    let mut tract = TractEngine::from_model_proto(&proto).unwrap();
+    let kernel = KernelHostEngine::from_lowered(lower_proto(&proto).unwrap()).unwrap();
+    assert_eq!(
+        DenoiserEngine::object_frame(&tract),
+        ObjectFrame::SegmentStart
+    );
+    assert_eq!(
+        DenoiserEngine::object_frame(&kernel),
+        ObjectFrame::SegmentStart
+    );
+    // A world-frame model says nothing, and reads as the world's.
+    let plain = world.onnx().unwrap();
+    assert!(
+        !plain
+            .metadata_props
+            .iter()
+            .any(|p| p.key == dips_onnx::contract::OBJECT_FRAME_KEY)
+    );
+    assert_eq!(
+        dips_onnx::contract::object_frame(&plain).unwrap(),
+        ObjectFrame::World
+    );
+
+    // Sampled from a start far from the origin, rows come back in the world's frame.
+    let dims = DenoiserEngine::dims(&tract);
+    let start: Vec<f32> = ds.demos[0].trajectories[..dims.state_dim].to_vec();
+    let mut far = start.clone();
+    far[cols.start + 1] -= 0.05;
+    let n = 8;
+    let starts: Vec<f32> = (0..n).flat_map(|_| far.iter().copied()).collect();
+    let context: Vec<f32> = (0..n * dims.fingers).map(|_| 1.0).collect();
+    let layout = ScratchLayout::new(dims, n);
+    let mut buf = vec![0f32; layout.total()];
+    let mut scratch = SamplerScratch::split(&mut buf, &layout).unwrap();
+    let mut out = vec![0f32; n * dims.floats_per_trajectory()];
+    sample(
+        &mut tract,
+        &SamplerConfig::ddim(4),
+        &SampleRequest {
+            context: &context,
+            start_states: Some(&starts),
+        },
+        &mut KernelRng::seed_from_u64(3),
+        &mut scratch,
+        &mut out,
+    )
+    .unwrap();
+    let d = dims.dim();
+    let td = dims.floats_per_trajectory();
+    let mean_y = |row: usize| {
+        out.chunks(td)
+            .map(|t| t[row * d + cols.start + 1])
+            .sum::<f32>()
+            / n as f32
+    };
+    assert_eq!(&out[..dims.state_dim], &far[..], "row 0 is the start");
+    // The model learnt motion from the start: its rows stay near the (moved) start, not
+    // where the demos' cards lie.
+    let last = mean_y(dims.horizon - 1);
+    assert!(
+        (last - far[cols.start + 1]).abs() < 0.04,
+        "the last row's y {last} is near the start's {}",
+        far[cols.start + 1]
+    );
+
+    // Ψ: the world's frame, its own normalisation (the world model's).
+    let disc = train_discriminator(&ds, &s, &den, &dir, &opts).unwrap();
+    assert_eq!(disc.norm, world.norm);
+    let psi = disc.onnx().unwrap();
+    assert_eq!(
+        dips_onnx::contract::object_frame(&psi).unwrap(),
+        ObjectFrame::World
+    );
+    // A discriminator that claimed a frame would be refused.
+    let mut claims = psi.clone();
+    claims
+        .metadata_props
+        .push(tract_onnx::pb::StringStringEntryProto {
+            key: dips_onnx::contract::OBJECT_FRAME_KEY.into(),
+            value: "segment-start".into(),
+        });
+    let e = dips_onnx::contract::validate(&claims)
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("discriminator"), "{e}");
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
 #[test]
 fn card_export_agrees_with_both_engines() {
     check_export(Task::Card, 0);

@@ -7,7 +7,7 @@ use crate::diffusion::error::{SampleError, SamplerError};
 use crate::diffusion::normalize::{denormalize_in_place, is_valid};
 use crate::diffusion::schedule::{cosine_beta, fill_alpha_bar};
 use crate::diffusion::scratch::SamplerScratch;
-use crate::engine::{DenoiserEngine, ModelDims};
+use crate::engine::{DenoiserEngine, ModelDims, ObjectFrame};
 use crate::rng::KernelRng;
 
 /// Lower clip of the posterior variance before its logarithm is taken.
@@ -127,6 +127,10 @@ impl StepCoefficients {
 /// `max_batch() / 2` trajectories (and what the scratch holds); chunking does not change the
 /// result. With start states, row 0's state columns are set to the normalized start state
 /// before the loop and after every step, and to the raw start state exactly in the output.
+/// A model that measures the object from the segment's start ([`ObjectFrame::SegmentStart`])
+/// is inpainted with those columns at zero, and the start's values are added to them in every
+/// row of the output, so the output is in the world's frame whatever the model's. Free
+/// samples (no start states) are returned in the model's frame.
 ///
 /// Random draws are trajectory-major (`x_T`, then each step's noise), so the same `rng` state
 /// gives the same bits whatever the chunking.
@@ -191,6 +195,7 @@ pub fn sample<E: DenoiserEngine>(
     if let Some(starts) = request.start_states
         && dims.state_dim > 0
     {
+        to_world_frame(engine.object_frame(), dims, out, starts);
         let td = dims.floats_per_trajectory();
         for (traj, s0) in out.chunks_mut(td).zip(starts.chunks(dims.state_dim)) {
             if let Some(row0) = traj.get_mut(..dims.state_dim) {
@@ -371,16 +376,55 @@ fn inpaint_all<E: DenoiserEngine>(
     }
 }
 
-/// Write the normalized start states into row 0's state columns of each trajectory.
+/// Write the normalized start states into row 0's state columns of each trajectory, in the
+/// model's object frame (the columns it measures from the start hold zero there).
 fn inpaint<E: DenoiserEngine>(engine: &E, dims: ModelDims, trajs: &mut [f32], starts: &[f32]) {
     let norm = engine.normalization();
     let td = dims.floats_per_trajectory();
     if dims.state_dim == 0 {
         return;
     }
+    let relative = frame_columns(engine.object_frame(), dims);
     for (traj, s0) in trajs.chunks_mut(td).zip(starts.chunks(dims.state_dim)) {
-        for (((v, raw), m), s) in traj.iter_mut().zip(s0).zip(norm.mean).zip(norm.std) {
+        for (col, (((v, raw), m), s)) in traj
+            .iter_mut()
+            .zip(s0)
+            .zip(norm.mean)
+            .zip(norm.std)
+            .enumerate()
+        {
+            let raw = if relative.contains(&col) { 0.0 } else { *raw };
             *v = (raw - m) / s;
+        }
+    }
+}
+
+/// The state columns `frame` measures from the start, empty when they do not lie inside the
+/// model's state (then the frame changes nothing, in inpainting and in the output alike).
+fn frame_columns(frame: ObjectFrame, dims: ModelDims) -> core::ops::Range<usize> {
+    let cols = frame.start_columns(dims.fingers);
+    if cols.end > dims.state_dim {
+        0..0
+    } else {
+        cols
+    }
+}
+
+/// Move the sampled trajectories of `out` (raw rows) from the model's object frame into the
+/// world's: the start's value of every column the frame measures from row 0 is added to that
+/// column of every row.
+fn to_world_frame(frame: ObjectFrame, dims: ModelDims, out: &mut [f32], starts: &[f32]) {
+    let relative = frame_columns(frame, dims);
+    let d = dims.dim();
+    if relative.is_empty() || d == 0 {
+        return;
+    }
+    let td = dims.floats_per_trajectory();
+    for (traj, s0) in out.chunks_mut(td).zip(starts.chunks(dims.state_dim)) {
+        for row in traj.chunks_exact_mut(d) {
+            for col in relative.clone() {
+                row[col] += s0[col];
+            }
         }
     }
 }

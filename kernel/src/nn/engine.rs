@@ -2,7 +2,7 @@
 
 use super::NnError;
 use super::model::{ModelInfo, install, parse, run};
-use crate::engine::{DenoiserEngine, DiscriminatorEngine, ModelDims, Normalization};
+use crate::engine::{DenoiserEngine, DiscriminatorEngine, ModelDims, Normalization, ObjectFrame};
 
 /// A lowered model ready to run: the blob, and caller memory holding its weights, the op
 /// scratch and the activation arena. Runs any batch up to what that memory holds
@@ -65,6 +65,10 @@ impl DenoiserEngine for KernelEngine<'_, '_> {
 
     fn normalization(&self) -> Normalization<'_> {
         self.norm()
+    }
+
+    fn object_frame(&self) -> ObjectFrame {
+        self.info.object_frame
     }
 
     fn max_batch(&self) -> usize {

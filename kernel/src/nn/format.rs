@@ -1,4 +1,5 @@
-//! The lowered model blob (`.dipsm`), format version 1.
+//! The lowered model blob (`.dipsm`), format version 2 (version 1 had no
+//! [`Meta::object_frame`]; lower the ONNX model again to get a version 2 blob).
 //!
 //! `blob = postcard(Header) ++ postcard(Body) ++ crc32_le(everything before)`.
 //! The body borrows its strings, its op stream and its weight bytes from the blob, so decoding
@@ -11,7 +12,7 @@ use serde::{Deserialize, Serialize};
 /// The first four bytes of every blob.
 pub const MAGIC: [u8; 4] = *b"DIPM";
 /// The blob format version this interpreter reads.
-pub const BLOB_VERSION: u16 = 1;
+pub const BLOB_VERSION: u16 = 2;
 /// The checksum (CRC-32/ISO-HDLC) over header and body.
 pub const CHECKSUM: crc::Crc<u32> = crc::Crc::<u32>::new(&crc::CRC_32_ISO_HDLC);
 /// Most contract inputs a model has (the denoiser's `x, t, context, cond_mask`).
@@ -395,6 +396,8 @@ pub struct Meta<'a> {
     pub norm_mean: W,
     /// `dips.norm_std` in the weight array.
     pub norm_std: W,
+    /// `dips.object_frame` as [`crate::engine::ObjectFrame::code`] (0 for a discriminator).
+    pub object_frame: u8,
 }
 
 /// Everything after the header.

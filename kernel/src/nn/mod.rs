@@ -111,7 +111,7 @@ impl fmt::Display for NnError {
             Self::BadMagic => f.write_str("not a model blob (bad magic)"),
             Self::UnsupportedVersion { found, supported } => write!(
                 f,
-                "model blob format version {found}, this interpreter reads {supported}"
+                "model blob format version {found}, this interpreter reads {supported}: lower the ONNX model again (`dips model lower`)"
             ),
             Self::ChecksumMismatch { stored, computed } => write!(
                 f,

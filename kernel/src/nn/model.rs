@@ -34,6 +34,8 @@ pub struct ModelInfo {
     pub norm_mean: W,
     /// Normalization std in the weights.
     pub norm_std: W,
+    /// Where the model measures the object from (`dips.object_frame`).
+    pub object_frame: crate::engine::ObjectFrame,
     ops_range: (usize, usize),
     weights_range: (usize, usize),
 }
@@ -135,6 +137,8 @@ pub fn parse(blob: &[u8]) -> Result<ModelInfo, NnError> {
     if n_inputs != want_inputs || m.contract != 1 {
         return Err(NnError::BadLayout);
     }
+    let object_frame =
+        crate::engine::ObjectFrame::from_code(m.object_frame).ok_or(NnError::BadLayout)?;
     let n_weights = body.n_weights as usize;
     if body.weights.len() != n_weights.checked_mul(4).ok_or(NnError::BadLayout)? {
         return Err(NnError::BadLayout);
@@ -207,6 +211,7 @@ pub fn parse(blob: &[u8]) -> Result<ModelInfo, NnError> {
         n_ops: count,
         norm_mean: m.norm_mean,
         norm_std: m.norm_std,
+        object_frame,
         ops_range: offset_in(blob, body.ops),
         weights_range: offset_in(blob, body.weights),
     })
@@ -625,6 +630,7 @@ mod tests {
                 columns_json: "[\"a\",\"b\"]",
                 norm_mean: W { off: 5, len: 2 },
                 norm_std: W { off: 7, len: 2 },
+                object_frame: 0,
             },
             inputs: [buf(0, 4), buf(4, 1), buf(0, 0), buf(0, 0)],
             n_inputs: 2,

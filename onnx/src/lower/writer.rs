@@ -118,6 +118,7 @@ pub(super) fn write(contract: &Contract, prog: Program) -> Result<LoweredModel> 
             columns_json: &columns_json,
             norm_mean,
             norm_std,
+            object_frame: contract.object_frame.code(),
         },
         inputs,
         n_inputs: prog.inputs.len() as u8,
