@@ -6,9 +6,12 @@ Runs the `mode_probe` example (host/cli/examples/mode_probe.rs: 64 segments per 
 the planner's sampler) on every held-out push (index, middle, both) of the card-paper demos and
 bins the mean diffused and executed change of the card's y by the push's start.
 
-Usage: scripts/card-push-probe.py [DATA_DIR] > docs/results/card/paper-push-probe.json
+Usage: scripts/card-push-probe.py [DATA_DIR [MODELS...]] > docs/results/card/paper-push-probe.json
   DATA_DIR: the demos (default target/models-work/data/card-paper, `dips datagen --task card
-  --card-goals paper --demos 128`). Needs `cargo build --release -p dips-cli --example mode_probe`.
+  --card-goals paper --demos 128`). MODELS: model folders (default the three card-paper ones;
+  the card-paper-start ones, trained in the segment-start frame, go to
+  docs/results/card/paper-start-push-probe.json). Needs `cargo build --release -p dips-cli
+  --example mode_probe`.
 """
 import json
 import re
@@ -42,9 +45,10 @@ def probe(models, data, mode):
 
 def main():
     data = sys.argv[1] if len(sys.argv) > 1 else "target/models-work/data/card-paper"
-    report = {"command": "scripts/card-push-probe.py " + data, "sampler": SAMPLER,
-              "unit": "cm of card y", "models": {}}
-    for models in MODELS:
+    models_list = sys.argv[2:] or MODELS
+    report = {"command": " ".join(["scripts/card-push-probe.py", data] + sys.argv[2:]),
+              "sampler": SAMPLER, "unit": "cm of card y", "models": {}}
+    for models in models_list:
         rows = [r for mode in ("index", "middle", "both") for r in probe(models, data, mode)]
         bins = {}
         for start, executed, diffused, row1, after in rows:

@@ -84,8 +84,9 @@ for task in "${TASK_LIST[@]}"; do
 done
 for p in "${pids[@]}"; do wait "$p"; done
 
-# The Diffusion Policy baseline has no start frame: models in the segment-start frame share
-# the world-frame folder's (onnx/models/<data name>[-seed<SEED>]/policy/) and train none.
+# The Diffusion Policy baseline has no start frame: models in the segment-start frame train
+# none and get a copy of the world-frame folder's (onnx/models/<data name>[-seed<SEED>]/policy/,
+# the same files), so that every method runs from their folder.
 if [[ $OBJECT_FRAME == world ]]; then
   pids=()
   for task in "${TASK_LIST[@]}"; do
@@ -110,6 +111,11 @@ for task in "${TASK_LIST[@]}"; do
   out="$(shipped "$task")"
   mkdir -p "$out"
   if [[ $OBJECT_FRAME == segment-start ]]; then
+    policy="onnx/models/$(data_name "$task")$(suffix)/policy"
+    if [[ -d $policy ]]; then
+      rm -rf "$out/policy"
+      cp -r "$policy" "$out/policy"
+    fi
     # The settings as trained, frame included (the task's file does not name it).
     python3 -c 'import json, sys; print(json.dumps(json.load(open(sys.argv[1]))["settings"], indent=2))' \
       "$(work_models "$task")/train_report.json" > "$out/settings.json"
