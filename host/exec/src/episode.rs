@@ -260,6 +260,11 @@ pub struct EpisodeResult {
     pub csvto_step_s: Vec<f64>,
     /// Per-mode details (start/end states, per-step logs, regrasp distances).
     pub mode_runs: Vec<ModeRun>,
+    /// The world state the episode began in, written only when no mode ran (a first planning
+    /// call that planned nothing): otherwise the first mode run's `start_state` holds it. It is
+    /// what a report of such an episode draws.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub start_state: Option<Vec<f64>>,
     /// Every planning call of a searching method, in order (empty for fixed sequences).
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub plans: Vec<PlanRecord>,
@@ -504,6 +509,7 @@ impl EpisodeResult {
             plan_state_columns: task.task().state_columns(),
             planning_s,
             csvto_step_s,
+            start_state: runs.is_empty().then(|| start.to_vec()),
             mode_runs: runs,
             plans: Vec::new(),
             card_goals: CardGoals::default(),

@@ -96,6 +96,9 @@ pub struct EpisodeFile {
     pub csvto_step_s: Vec<f64>,
     /// The executed modes in detail.
     pub mode_runs: Vec<ModeRunView>,
+    /// The state the episode began in, present only when no mode ran.
+    #[serde(default)]
+    pub start_state: Option<Vec<f64>>,
     /// The planning calls.
     #[serde(default)]
     pub plans: Vec<PlanView>,
@@ -315,6 +318,25 @@ impl Recording {
                 });
             }
         }
+        if frames.is_empty()
+            && let Some(start) = &ep.start_state
+        {
+            // No mode ran: the start, and why (the first planning call's status).
+            let why = ep.plans.first().map_or_else(
+                || "no mode was executed".to_string(),
+                |p| format!("no mode was planned (search {})", p.status),
+            );
+            frames.push(Frame {
+                state: start.clone(),
+                contacts: Vec::new(),
+                goals: task_goals(scene),
+                label: format!(
+                    "start · {} · {why}",
+                    object_words(scene, object_of(start), None)
+                ),
+                hold_s: 1.0,
+            });
+        }
         if let Some(last) = frames.last_mut() {
             last.hold_s = 3.0;
             last.label.push_str(&format!(" · end: {}", ep.outcome()));
@@ -432,6 +454,7 @@ mod tests {
             planning_s: vec![2.21, 1.89, 0.001],
             csvto_step_s: Vec::new(),
             mode_runs: Vec::new(),
+            start_state: None,
             plans: vec![
                 plan(&["both", "both"], 5, 2.21),
                 plan(&["both"], 3, 1.89),
@@ -440,6 +463,45 @@ mod tests {
         };
         assert!(ep.plans[2].finished() && !ep.plans[1].finished());
         assert_eq!(ep.planning_times(), vec![2.21, 1.89]);
+    }
+
+    /// An episode whose first planning call planned nothing ran no mode: its report draws the
+    /// start it kept and says why; without a start there is nothing to draw, and it says so.
+    #[test]
+    fn an_episode_that_ran_no_mode_draws_its_start() {
+        let ep = |start_state: Option<Vec<f64>>| EpisodeFile {
+            task: "card".into(),
+            method: "dips".into(),
+            seed: 7,
+            modes: Vec::new(),
+            final_yaw: None,
+            final_distance_m: Some(0.06),
+            valid: true,
+            success: Some(false),
+            success_rule: None,
+            planning_s: vec![0.5],
+            csvto_step_s: Vec::new(),
+            mode_runs: Vec::new(),
+            start_state,
+            plans: vec![PlanView {
+                modes: Vec::new(),
+                status: "NoPath".into(),
+                nodes_expanded: 4,
+                seconds: 0.5,
+            }],
+        };
+        let start = vec![0.1; 8 + 3];
+        let rec = Recording::of_episode(ep(Some(start.clone()))).unwrap();
+        assert_eq!(rec.frames.len(), 1);
+        assert_eq!(rec.frames[0].state, start);
+        assert!(
+            rec.frames[0]
+                .label
+                .contains("no mode was planned (search NoPath)"),
+            "{}",
+            rec.frames[0].label
+        );
+        assert!(Recording::of_episode(ep(None)).unwrap().frames.is_empty());
     }
 
     #[test]
