@@ -11,6 +11,11 @@ Usage: scripts/card-paper-diagnosis.py [DATA_DIR] > docs/results/card/paper-tuni
   the demos.
   paper-tuning-500-nogain-host is `--stop-rule no-gain --planner-size host` on the same seeds
   (dips and dips-no-replan; docs/online.md, "Stopping and the planner's size").
+       scripts/card-paper-diagnosis.py --start > docs/results/card/paper-start-diagnosis.json
+  --start: the same figures for the card-paper models trained in the segment-start object frame
+  (onnx/models/card-paper-start*): the tuning runs paper-start-tuning-500 (the paper's setting)
+  and paper-start-tuning-500-nogain, and the registered paper-start-10500-seed<S> and
+  paper-start-nogain-10500-seed<S> (those that exist), without the demos.
 
 The paired differences (DIPS minus each method, from results.json) are computed from the
 committed files; the per-episode figures need the full runs (commit 717570b, or
@@ -165,7 +170,17 @@ REGISTERED = [f"docs/results/card/paper-{first}-seed{seed}"
               "docs/results/card/paper-code-10300-seed0", "docs/results/card/capped-10300-seed0"]
 
 
+START = ["docs/results/card/paper-start-tuning-500",
+         "docs/results/card/paper-start-tuning-500-nogain"] + [
+         f"docs/results/card/paper-start{variant}-10500-seed{seed}"
+         for variant in ("", "-nogain") for seed in (0, 1, 2)]
+
+
 def main():
+    if sys.argv[1:] == ["--start"]:
+        print(json.dumps({"command": "scripts/card-paper-diagnosis.py --start",
+                          "runs": runs(START)}, indent=1))
+        return
     if sys.argv[1:] == ["--registered"]:
         print(json.dumps({"command": "scripts/card-paper-diagnosis.py --registered",
                           "runs": runs(REGISTERED)}, indent=1))
