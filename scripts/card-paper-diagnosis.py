@@ -15,7 +15,8 @@ Usage: scripts/card-paper-diagnosis.py [DATA_DIR] > docs/results/card/paper-tuni
   --start: the same figures for the card-paper models trained in the segment-start object frame
   (onnx/models/card-paper-start*): the tuning runs paper-start-tuning-500 (the paper's setting)
   and paper-start-tuning-500-nogain, and the registered paper-start-10500-seed<S> and
-  paper-start-nogain-10500-seed<S> (those that exist), without the demos.
+  paper-start-nogain-10500-seed<S> (those that exist), without the demos; and the no-gain
+  variant's `dips` minus every method of the paper's-setting run, paired on the same seeds.
 
 The paired differences (DIPS minus each method, from results.json) are computed from the
 committed files; the per-episode figures need the full runs (commit 717570b, or
@@ -176,10 +177,45 @@ START = ["docs/results/card/paper-start-tuning-500",
          for variant in ("", "-nogain") for seed in (0, 1, 2)]
 
 
+def outcomes(run):
+    """method -> seed -> outcome (cm) of a run's results.json; empty when it does not exist."""
+    path = f"{run}/results.json"
+    by = {}
+    if os.path.isfile(path):
+        for t in json.load(open(path))["trials"]:
+            by.setdefault(t["method"], {})[t["seed"]] = t["outcome"]
+    return by
+
+
+def nogain_against_paper():
+    """The no-gain variant's `dips` minus every method of the paper's-setting run on the same
+    seeds and models (paired per seed), per model seed and pooled over the models."""
+    out, pooled = {}, {}
+    for seed in (0, 1, 2):
+        nogain = outcomes(f"docs/results/card/paper-start-nogain-10500-seed{seed}").get("dips", {})
+        paper = outcomes(f"docs/results/card/paper-start-10500-seed{seed}")
+        if not nogain or not paper:
+            continue
+        per = {}
+        for method, seeds in paper.items():
+            d = [nogain[s] - seeds[s] for s in seeds if s in nogain]
+            if len(d) > 1:
+                pooled.setdefault(method, []).extend(d)
+                per[method] = {"mean": round(st.mean(d), 3),
+                               "se": round(st.stdev(d) / len(d) ** 0.5, 3), "n": len(d)}
+        out[f"model_seed{seed}"] = per
+    out["pooled"] = {m: {"mean": round(st.mean(d), 3),
+                         "se": round(st.stdev(d) / len(d) ** 0.5, 3), "n": len(d)}
+                     for m, d in pooled.items() if len(d) > 1}
+    return out
+
+
 def main():
     if sys.argv[1:] == ["--start"]:
         print(json.dumps({"command": "scripts/card-paper-diagnosis.py --start",
-                          "runs": runs(START)}, indent=1))
+                          "runs": runs(START),
+                          "nogain_dips_minus_paper_setting": nogain_against_paper()},
+                         indent=1))
         return
     if sys.argv[1:] == ["--registered"]:
         print(json.dumps({"command": "scripts/card-paper-diagnosis.py --registered",
