@@ -9,6 +9,13 @@ the `results.json` of the experiment's runs that exist:
   card-paper   docs/results/card/paper-10300-seed<S>/ (all seven methods, 10300-10309) and
                paper-10310-seed<S>/ (dips, dips-k1, dips-max-likelihood, 10310-10329), the
                card under the paper's setting -> docs/results/card/paper-10300.json
+  card-paper-start   docs/results/card/paper-start-10500-seed<S>/ (all seven methods,
+               10500-10509) and paper-start-10510-seed0 (dips, dips-k1, dips-max-likelihood,
+               10510-10529, model seed 0 only), the same with the card-paper models trained in
+               the segment-start object frame -> docs/results/card/paper-start-10500.json
+  card-paper-start-nogain   docs/results/card/paper-start-nogain-10500-seed<S>/ (dips,
+               dips-k1, dips-max-likelihood, 10500-10509, our `--stop-rule no-gain`)
+               -> docs/results/card/paper-start-nogain-10500.json
 
 Prints each method's mean ± SE (valid, over all trials and over valid ones), success count and
 planning time (the paper's way: the mean over every call of every episode; ours: median and
@@ -29,6 +36,9 @@ from paired import se, trials as read_trials
 EXPERIMENTS = {
     "screwdriver": ("screwdriver", "models", (10200, 10210), "models-10200.json"),
     "card-paper": ("card", "paper", (10300, 10310), "paper-10300.json"),
+    "card-paper-start": ("card", "paper-start", (10500, 10510), "paper-start-10500.json"),
+    "card-paper-start-nogain": ("card", "paper-start-nogain", (10500,),
+                                "paper-start-nogain-10500.json"),
 }
 experiment = sys.argv[1] if len(sys.argv) > 1 else "screwdriver"
 if experiment not in EXPERIMENTS:
@@ -44,7 +54,7 @@ def trials(seed):
     """(method, seed) → trial over the model's runs that exist, and their statuses."""
     paths = [p for first in firsts
              if (p := root / f"{prefix}-{first}-seed{seed}" / "results.json").exists()]
-    statuses = {p.parent.name.split("-")[1]:
+    statuses = {p.parent.name.removeprefix(prefix + "-").split("-")[0]:
                 json.loads(p.read_text()).get("registration", {}).get("status", "unregistered")
                 for p in paths}
     return read_trials(paths, "models-table.py"), statuses
