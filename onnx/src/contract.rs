@@ -30,35 +30,27 @@ pub const CARD_GOALS_KEY: &str = "dips.card_goals";
 pub const OBJECT_FRAME_KEY: &str = "dips.object_frame";
 
 /// The object frame of a model ([`OBJECT_FRAME_KEY`]): the world's when the model does not say;
-/// an error when it names neither frame, or when a discriminator names one (the frame is the
-/// denoiser's; Ψ scores segments in the world's frame).
+/// an error when it names neither frame. ([`validate`] also refuses a discriminator that names
+/// one: the frame is the denoiser's, and Ψ scores segments in the world's frame.)
 pub fn object_frame(proto: &pb::ModelProto) -> Result<dips_kernel::engine::ObjectFrame> {
-    let Some(v) = proto
-        .metadata_props
-        .iter()
-        .find(|p| p.key == OBJECT_FRAME_KEY)
-    else {
-        return Ok(dips_kernel::engine::ObjectFrame::World);
-    };
-    v.value
-        .parse()
-        .map_err(|e| contract_err(format!("{OBJECT_FRAME_KEY}: {e}")))
+    optional_meta(proto, OBJECT_FRAME_KEY).map_or(
+        Ok(dips_kernel::engine::ObjectFrame::World),
+        |v| {
+            v.parse()
+                .map_err(|e| contract_err(format!("{OBJECT_FRAME_KEY}: {e}")))
+        },
+    )
 }
 
 /// The card goals a model was trained for ([`CARD_GOALS_KEY`]), `None` when the model does not
 /// say; an error when it names none of them.
 pub fn card_goals(proto: &pb::ModelProto) -> Result<Option<dips_kernel::task::CardGoals>> {
-    let Some(v) = proto
-        .metadata_props
-        .iter()
-        .find(|p| p.key == CARD_GOALS_KEY)
-    else {
-        return Ok(None);
-    };
-    v.value
-        .parse()
-        .map(Some)
-        .map_err(|e| contract_err(format!("{CARD_GOALS_KEY}: {e}")))
+    optional_meta(proto, CARD_GOALS_KEY)
+        .map(|v| {
+            v.parse()
+                .map_err(|e| contract_err(format!("{CARD_GOALS_KEY}: {e}")))
+        })
+        .transpose()
 }
 
 /// How [`PSI_NEGATIVES_KEY`] names the samples of `method`: the sampler's name as `--sampler`
@@ -75,18 +67,15 @@ pub fn psi_sample_name(method: &dips_kernel::diffusion::SamplingMethod, anchored
 /// The samplers a discriminator's negatives came from ([`PSI_NEGATIVES_KEY`]), `None` when the
 /// model does not say; an error when it says something that is not a JSON array of strings.
 pub fn psi_negatives(proto: &pb::ModelProto) -> Result<Option<Vec<String>>> {
-    let Some(v) = proto
-        .metadata_props
-        .iter()
-        .find(|p| p.key == PSI_NEGATIVES_KEY)
-    else {
-        return Ok(None);
-    };
-    serde_json::from_str(&v.value).map(Some).map_err(|e| {
-        contract_err(format!(
-            "{PSI_NEGATIVES_KEY} is not a JSON array of sampler names: {e}"
-        ))
-    })
+    optional_meta(proto, PSI_NEGATIVES_KEY)
+        .map(|v| {
+            serde_json::from_str(v).map_err(|e| {
+                contract_err(format!(
+                    "{PSI_NEGATIVES_KEY} is not a JSON array of sampler names: {e}"
+                ))
+            })
+        })
+        .transpose()
 }
 
 /// What a model is for.
@@ -352,12 +341,18 @@ fn contract_err(msg: impl Into<String>) -> ModelError {
     ModelError::Contract(msg.into())
 }
 
-fn meta<'a>(proto: &'a pb::ModelProto, key: &str) -> Result<&'a str> {
+/// The value of metadata property `key`, `None` when the model has none.
+fn optional_meta<'a>(proto: &'a pb::ModelProto, key: &str) -> Option<&'a str> {
     proto
         .metadata_props
         .iter()
         .find(|p| p.key == key)
         .map(|p| p.value.as_str())
+}
+
+/// The value of a required metadata property; an error naming it when missing.
+fn meta<'a>(proto: &'a pb::ModelProto, key: &str) -> Result<&'a str> {
+    optional_meta(proto, key)
         .ok_or_else(|| contract_err(format!("metadata property {key} is missing")))
 }
 
