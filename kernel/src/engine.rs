@@ -88,17 +88,19 @@ impl ObjectFrame {
         }
     }
 
-    /// The state columns this frame measures from row 0, for segments of `fingers` fingers
-    /// (empty for [`ObjectFrame::World`]).
-    pub const fn start_columns(self, fingers: usize) -> core::ops::Range<usize> {
+    /// The state columns this frame measures from row 0, for segments of `fingers` fingers and
+    /// `state_dim` state columns: empty for [`ObjectFrame::World`], and when the columns do not
+    /// lie inside the state (then the frame changes nothing, in training, inpainting and the
+    /// sampler's output alike).
+    pub const fn start_columns(self, fingers: usize, state_dim: usize) -> core::ops::Range<usize> {
         let first = crate::mode::RowLayout {
             fingers,
             env_force: false,
         }
         .object();
         match self {
-            ObjectFrame::World => first..first,
-            ObjectFrame::SegmentStart => first..first + 2,
+            ObjectFrame::SegmentStart if first + 2 <= state_dim => first..first + 2,
+            _ => 0..0,
         }
     }
 }

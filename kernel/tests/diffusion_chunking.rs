@@ -175,7 +175,7 @@ proptest! {
         };
         let config = SamplerConfig::default();
         let starts = starts_of(dims, n);
-        let cols = ObjectFrame::SegmentStart.start_columns(fingers);
+        let cols = ObjectFrame::SegmentStart.start_columns(fingers, state_dim);
         prop_assert_eq!(cols.clone(), 4 * fingers..4 * fingers + 2);
         let mut at_origin = starts.clone();
         for s0 in at_origin.chunks_mut(state_dim) {

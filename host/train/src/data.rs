@@ -199,9 +199,9 @@ impl Normalizer {
 /// their row 0's value in every row, so row 0 holds zeros there. The world's frame changes
 /// nothing. The sampler undoes it (`dips_kernel::diffusion::sample`).
 pub fn to_object_frame(s: &mut Samples, frame: ObjectFrame, dims: SegmentDims) {
-    let cols = frame.start_columns(dims.fingers);
+    let cols = frame.start_columns(dims.fingers, dims.state_dim);
     let d = dims.dim();
-    if cols.is_empty() || cols.end > dims.state_dim || d == 0 {
+    if cols.is_empty() || d == 0 {
         return;
     }
     for traj in s.x.chunks_exact_mut(dims.floats()) {

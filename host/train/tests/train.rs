@@ -211,7 +211,8 @@ fn a_segment_start_denoiser_is_trained_exported_and_sampled_in_its_frame() {
         w.denoiser.object_frame = ObjectFrame::World;
         train_denoiser(&ds, &w, &dir.join("world"), &opts).unwrap()
     };
-    let cols = ObjectFrame::SegmentStart.start_columns(Task::Card.dims().fingers);
+    let card = Task::Card.dims();
+    let cols = ObjectFrame::SegmentStart.start_columns(card.fingers, card.state_dim);
     for c in cols.clone() {
         assert_ne!(
             den.norm.mean[c], world.norm.mean[c],

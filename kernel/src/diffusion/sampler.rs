@@ -384,7 +384,9 @@ fn inpaint<E: DenoiserEngine>(engine: &E, dims: ModelDims, trajs: &mut [f32], st
     if dims.state_dim == 0 {
         return;
     }
-    let relative = frame_columns(engine.object_frame(), dims);
+    let relative = engine
+        .object_frame()
+        .start_columns(dims.fingers, dims.state_dim);
     for (traj, s0) in trajs.chunks_mut(td).zip(starts.chunks(dims.state_dim)) {
         for (col, (((v, raw), m), s)) in traj
             .iter_mut()
@@ -399,22 +401,11 @@ fn inpaint<E: DenoiserEngine>(engine: &E, dims: ModelDims, trajs: &mut [f32], st
     }
 }
 
-/// The state columns `frame` measures from the start, empty when they do not lie inside the
-/// model's state (then the frame changes nothing, in inpainting and in the output alike).
-fn frame_columns(frame: ObjectFrame, dims: ModelDims) -> core::ops::Range<usize> {
-    let cols = frame.start_columns(dims.fingers);
-    if cols.end > dims.state_dim {
-        0..0
-    } else {
-        cols
-    }
-}
-
 /// Move the sampled trajectories of `out` (raw rows) from the model's object frame into the
 /// world's: the start's value of every column the frame measures from row 0 is added to that
 /// column of every row.
 fn to_world_frame(frame: ObjectFrame, dims: ModelDims, out: &mut [f32], starts: &[f32]) {
-    let relative = frame_columns(frame, dims);
+    let relative = frame.start_columns(dims.fingers, dims.state_dim);
     let d = dims.dim();
     if relative.is_empty() || d == 0 {
         return;
