@@ -54,6 +54,9 @@ pub struct EpisodeArgs {
     /// The card's goals.
     #[command(flatten)]
     pub card_goals: crate::search_args::CardGoalsArgs,
+    /// The CSVTO settings that execute the modes.
+    #[command(flatten)]
+    pub exec_profile: crate::search_args::ExecProfileArgs,
     /// The episode's search depth flag.
     #[command(flatten)]
     pub online: crate::search_args::OnlineArgs,
@@ -120,7 +123,8 @@ pub fn run(args: EpisodeArgs, hands: &dyn Hands) -> anyhow::Result<()> {
         stop_rule: args.online.stop_rule,
         planner_size: args.online.planner_size,
     };
-    let mut exec = ExecSettings::for_task(task);
+    let mut exec = ExecSettings::for_task(task)
+        .with_profile(task, args.exec_profile.exec_profile.unwrap_or_default())?;
     let trained = match (&models, &args.models) {
         (Some(m), _) => Some((m.dir.clone(), m.trained_card_goals())),
         // A method without models (csvto-sampled) still executes the goals of models given.

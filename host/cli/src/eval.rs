@@ -97,6 +97,9 @@ pub struct EvalArgs {
     /// The card's goals.
     #[command(flatten)]
     pub card_goals: crate::search_args::CardGoalsArgs,
+    /// The CSVTO settings that execute the modes.
+    #[command(flatten)]
+    pub exec_profile: crate::search_args::ExecProfileArgs,
     /// Where the planning calls are made: `in-process`, `spawn` (a `dips-firmware-sim` child
     /// per episode), `spawn:PATH` or `tcp://HOST:PORT` (with `--jobs 1`). The results are the
     /// same bit for bit.
@@ -305,6 +308,11 @@ pub fn run(args: EvalArgs, hands: &dyn Hands) -> anyhow::Result<()> {
         },
         registration: None,
         card_goals: Default::default(),
+        exec_profile: args
+            .exec_profile
+            .exec_profile
+            .or(given.map(|e| e.episode.exec_profile))
+            .unwrap_or_default(),
     };
     settings.card_goals = args.card_goals.resolve(
         task.task(),

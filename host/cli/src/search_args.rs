@@ -9,6 +9,7 @@ use std::str::FromStr;
 
 use clap::Args;
 use clap::builder::{PossibleValue, TypedValueParser};
+use dips_exec::ExecProfile;
 use dips_kernel::diffusion::SamplerConfig;
 use dips_kernel::mode::Task;
 use dips_kernel::search::{CostToCome, SearchOverrides};
@@ -124,6 +125,27 @@ impl Named for StopRule {
         "Stop when a plan holds no mode (the paper's)",
         "Also stop when the plan's expected end is no nearer the goal than here (ours)",
     ];
+}
+
+impl Named for ExecProfile {
+    const NAMES: &'static [&'static str] = &ExecProfile::NAMES;
+    const HELP: &'static [&'static str] = &[
+        "The paper's simulation settings",
+        "The paper's hardware experiment's (§V-D): α_J 1e-2, 250/50 iterations, thumb and \
+         middle push with ≥ 2.5 N, their diffused turn forces redrawn; screwdriver only",
+    ];
+}
+
+/// `--exec-profile` of `dips episode` and `dips eval`: which of the paper's CSVTO settings
+/// execute the modes. The planner and its models are the same under both.
+#[derive(Debug, Clone, Copy, Default, Args)]
+pub struct ExecProfileArgs {
+    /// The CSVTO settings that execute the modes: `simulation` (the default) or `hardware`
+    /// (the paper's hardware experiment, §V-D: α_J 1e-2, 250/50 iterations, the thumb and
+    /// middle finger push with at least 2.5 N and their diffused `turn` forces are redrawn;
+    /// the screwdriver only). `dips eval` resumes with the directory's.
+    #[arg(long, value_parser = named::<ExecProfile>())]
+    pub exec_profile: Option<ExecProfile>,
 }
 
 impl Named for PlannerSize {

@@ -157,6 +157,7 @@ fn eval_settings(e: &SettingsError) -> String {
             "--kernel {kernel}: a TCP kernel serves one connection at a time; use --jobs 1, or \
              --kernel spawn (one firmware per episode)"
         ),
+        SettingsError::Profile(e) => format!("--exec-profile {}: {e}", e.profile),
     }
 }
 
@@ -170,7 +171,7 @@ fn eval_file(e: &EvalFileError) -> Option<String> {
         } => format!(
             "{} holds an evaluation with other settings: {} is {there} there and {here} here; \
              use another --out, or the same task, sampler, budgets, mode limit, cost-to-come, \
-             search depth, models, engine, hand, tracker noise and card goals",
+             search depth, models, engine, hand, tracker noise, card goals and CSVTO profile",
             file.display(),
             flag_of(field),
         ),

@@ -135,6 +135,39 @@ fn flags_say_what_is_allowed() {
     let (code, err) = with(&["--max-modes", "0"]);
     assert_eq!(code, Some(2), "{err}");
     assert!(err.contains("--max-modes") && err.contains("≥ 1"), "{err}");
+    let (code, err) = with(&["--exec-profile", "lab"]);
+    assert_eq!(code, Some(2), "{err}");
+    assert!(
+        err.contains("lab") && err.contains("simulation") && err.contains("hardware"),
+        "{err}"
+    );
+    // The paper's hardware settings exist for the screwdriver only.
+    let (code, err) = with(&["--exec-profile", "hardware"]);
+    assert_ne!(code, Some(0), "{err}");
+    assert!(
+        err.contains("hardware") && err.contains("card") && err.contains("simulation"),
+        "{err}"
+    );
+    let (code, err) = dips(&[
+        "eval",
+        "--task",
+        "card",
+        "--exec-profile",
+        "hardware",
+        "--first-seed",
+        "0",
+        "--out",
+        &out,
+    ]);
+    assert_ne!(code, Some(0), "{err}");
+    assert!(
+        err.contains("--exec-profile hardware") && err.contains("card"),
+        "{err}"
+    );
+    assert!(
+        std::fs::read_dir(&out).map_or(true, |d| d.count() == 0),
+        "nothing written"
+    );
 }
 
 #[test]

@@ -991,6 +991,7 @@ mod tests {
                 card_goals: Default::default(),
                 stop_rule: Default::default(),
                 planner_size: Default::default(),
+                exec_profile: Default::default(),
             },
             methods: vec![Method::Dips],
             first_seed,

@@ -5,7 +5,7 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use dips_batch::{BatchError, RunShardError, Shard, ShardRun, run_shard};
-use dips_exec::{EpisodeResult, ExecSettings};
+use dips_exec::EpisodeResult;
 use dips_fs::write_atomic;
 use dips_link::{LinkError, RemoteError, RemotePlanner};
 use dips_planning::online::{Method, OnlineError, run_online};
@@ -96,6 +96,8 @@ enum EpisodeError {
     Remote(#[from] RemoteError),
     #[error(transparent)]
     Online(#[from] OnlineError),
+    #[error(transparent)]
+    Profile(#[from] dips_exec::ProfileError),
 }
 
 /// `e` and its causes on one line, each after a `: `.
@@ -214,10 +216,7 @@ fn run_episode(
         } else {
             None
         };
-        let exec = ExecSettings {
-            card_goals: settings.card_goals,
-            ..ExecSettings::for_task(settings.task)
-        };
+        let exec = settings.exec_settings()?;
         // Opened on this worker thread: a hand need not be `Send`.
         let mut hand = hands.open(
             settings.hand,

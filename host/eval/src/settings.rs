@@ -3,6 +3,7 @@
 use std::path::{Path, PathBuf};
 
 use dips_batch::{ProgressMode, Shard};
+use dips_exec::{ExecProfile, ExecSettings, ProfileError};
 use dips_kernel::diffusion::SamplingMethod;
 use dips_kernel::search::CostToCome;
 use dips_kernel::task::CardGoals;
@@ -76,6 +77,10 @@ pub struct EpisodeSettings {
     /// not the firmware's: absent means `paper`.
     #[serde(default, skip_serializing_if = "PlannerSize::is_paper")]
     pub planner_size: PlannerSize,
+    /// The CSVTO settings the modes are executed with (`--exec-profile`). Written only when
+    /// they are not the simulation's: absent means `simulation`.
+    #[serde(default, skip_serializing_if = "ExecProfile::is_simulation")]
+    pub exec_profile: ExecProfile,
 }
 
 impl EpisodeSettings {
@@ -151,6 +156,8 @@ pub struct EvalSettings {
     /// The card's goals every method executes and plans with (resolved against the models',
     /// [`dips_planning::resolve_card_goals`]).
     pub card_goals: CardGoals,
+    /// Which of the paper's CSVTO settings execute the modes (`--exec-profile`).
+    pub exec_profile: ExecProfile,
     /// The run's registration under a protocol (`dips eval --protocol`,
     /// [`crate::protocol::ProtocolFile::register`]), written to `registration.json` when the
     /// directory is claimed; `None` for a run without a protocol.
@@ -201,6 +208,9 @@ pub enum SettingsError {
         /// The episodes asked to run at once.
         jobs: usize,
     },
+    /// The CSVTO profile does not exist for the task.
+    #[error(transparent)]
+    Profile(#[from] ProfileError),
 }
 
 /// Why `eval.json` cannot be read, or an output directory cannot be claimed
@@ -314,7 +324,18 @@ impl EvalSettings {
                 jobs: self.jobs,
             });
         }
+        self.exec_settings()?;
         Ok(())
+    }
+
+    /// How every episode executes its modes: the task's CSVTO settings under
+    /// [`EvalSettings::exec_profile`], aiming at [`EvalSettings::card_goals`].
+    pub fn exec_settings(&self) -> Result<ExecSettings, ProfileError> {
+        ExecSettings {
+            card_goals: self.card_goals,
+            ..ExecSettings::for_task(self.task)
+        }
+        .with_profile(self.task, self.exec_profile)
     }
 
     /// The seed of trial `i`.
@@ -365,6 +386,7 @@ impl EvalSettings {
             card_goals: self.card_goals,
             stop_rule: self.online.stop_rule,
             planner_size: self.online.planner_size,
+            exec_profile: self.exec_profile,
         }
     }
 }
@@ -501,7 +523,35 @@ mod tests {
             card_goals: CardGoals::Capped,
             stop_rule: StopRule::GoalReached,
             planner_size: PlannerSize::Paper,
+            exec_profile: ExecProfile::Simulation,
         }
+    }
+
+    #[test]
+    fn the_exec_profile_round_trips_and_the_simulations_is_the_default() {
+        let sim = settings();
+        assert!(
+            serde_json::to_value(&sim)
+                .unwrap()
+                .get("exec_profile")
+                .is_none()
+        );
+        let hw = EpisodeSettings {
+            exec_profile: ExecProfile::Hardware,
+            ..sim.clone()
+        };
+        let v = serde_json::to_value(&hw).unwrap();
+        assert_eq!(v["exec_profile"], "hardware");
+        let back: EpisodeSettings = serde_json::from_value(v).unwrap();
+        assert_eq!(back, hw);
+        assert_eq!(
+            sim.first_difference(&hw),
+            (
+                "exec_profile".into(),
+                "(absent)".into(),
+                "\"hardware\"".into()
+            )
+        );
     }
 
     #[test]

@@ -52,6 +52,7 @@ fn settings(methods: Vec<Method>, trials: usize) -> EvalSettings {
         tracker_noise: None,
         registration: None,
         card_goals: Default::default(),
+        exec_profile: Default::default(),
     }
 }
 

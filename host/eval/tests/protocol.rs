@@ -73,6 +73,7 @@ fn settings(models: &Path, methods: Vec<Method>, first_seed: u64) -> EvalSetting
         tracker_noise: None,
         registration: None,
         card_goals: Default::default(),
+        exec_profile: Default::default(),
     }
 }
 

@@ -12,7 +12,7 @@ use serde::Serialize;
 use super::mode_run::{
     ExecError, ModeRun, StepParticles, pose_valid, run_mode_observed, true_hand_state,
 };
-use super::settings::ExecSettings;
+use super::settings::{ExecProfile, ExecSettings};
 use crate::problems::Mode;
 use dips_world::hand::Hand;
 use dips_world::kinematics::HandModel;
@@ -273,6 +273,10 @@ pub struct EpisodeResult {
     /// before it was recorded.
     #[serde(skip_serializing_if = "CardGoals::is_capped")]
     pub card_goals: CardGoals,
+    /// The CSVTO settings the modes were executed with ([`ExecSettings::profile`]); left out
+    /// when the simulation's, as in files written before it was recorded.
+    #[serde(skip_serializing_if = "ExecProfile::is_simulation")]
+    pub exec_profile: ExecProfile,
 }
 
 /// One planning call of an online method (`result.json`'s `plans`).
@@ -465,6 +469,7 @@ pub fn run_episode_observed<H: Hand + ?Sized>(
     );
     result.hand = hand.name();
     result.card_goals = settings.card_goals;
+    result.exec_profile = settings.profile;
     Ok(result)
 }
 
@@ -513,6 +518,7 @@ impl EpisodeResult {
             mode_runs: runs,
             plans: Vec::new(),
             card_goals: CardGoals::default(),
+            exec_profile: ExecProfile::Simulation,
         }
     }
 }

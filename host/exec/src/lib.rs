@@ -23,4 +23,4 @@ pub use mode_run::{
     ExecError, ModeRun, StepLog, StepParticles, hand_state, mode_goal, pose_valid, run_mode,
     run_mode_observed, true_hand_state,
 };
-pub use settings::ExecSettings;
+pub use settings::{ExecProfile, ExecSettings, ProfileError};

@@ -189,6 +189,42 @@ fn shift(particles: &mut [Vec<f64>], n: usize) {
     }
 }
 
+/// Replace the forces of the contact fingers whose given (diffused) forces the profile
+/// does not keep ([`ExecProfile::redraws_diffused_forces`](crate::settings::ExecProfile::redraws_diffused_forces)) by the
+/// default initialisation's, row by row; nothing is drawn when no finger's are replaced, so
+/// the simulation profile's runs are unchanged bit for bit.
+fn redraw_forces(
+    problem: &AllegroProblem,
+    mode: Mode,
+    settings: &ExecSettings,
+    particles: &mut [Vec<f64>],
+    rng: &mut KernelRng,
+) {
+    let task = problem.task();
+    let slots: Vec<usize> = task
+        .task_fingers()
+        .iter()
+        .enumerate()
+        .filter(|&(_, &f)| settings.profile.redraws_diffused_forces(task, mode, f))
+        .filter_map(|(i, _)| problem.contact_slot(i))
+        .collect();
+    if slots.is_empty() {
+        return;
+    }
+    let fresh = default_particles(problem, mode, particles.len(), rng);
+    let n = problem.row_dim();
+    for (p, d) in particles.iter_mut().zip(&fresh) {
+        for (row, drow) in p.chunks_exact_mut(n).zip(d.chunks_exact(n)) {
+            for &s in &slots {
+                for k in 0..3 {
+                    let c = problem.force_col(s, k);
+                    row[c] = drow[c];
+                }
+            }
+        }
+    }
+}
+
 /// Execute `mode` on `hand` (the quasi-static world, a recorder around it, or a real hand)
 /// closed-loop: warm-up solve on `initial` particles (or the default initialisation), then a
 /// re-solve at every step with the shrinking horizon, commanding `q + Δq₀` of the best
@@ -269,6 +305,8 @@ pub fn run_mode_observed<H: Hand + ?Sized>(
                     row: n,
                 });
             }
+            let mut p = p;
+            redraw_forces(&problem, mode, settings, &mut p, rng);
             p
         }
         None => default_particles(&problem, mode, settings.particles, rng),
@@ -416,4 +454,68 @@ pub fn run_mode_observed<H: Hand + ?Sized>(
         steps,
         regrasp_target_distance,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::settings::ExecProfile;
+
+    fn turn_problem() -> AllegroProblem {
+        let task = SceneKind::Screwdriver;
+        let q = task.default_joints();
+        let mut start: Vec<f64> = task
+            .task_fingers()
+            .iter()
+            .flat_map(|f| q[f.index()])
+            .collect();
+        start.extend_from_slice(&[0.0, 0.0, 0.0]);
+        let spec = ProblemSpec {
+            task,
+            mode: Mode::Turn,
+            horizon: 4,
+            start,
+            goal: [0.0, 0.0, -0.5],
+        };
+        AllegroProblem::new(&HandModel::allegro_v4(), &spec).expect("valid spec")
+    }
+
+    /// The hardware profile replaces the thumb's and middle finger's given `turn` forces, and
+    /// nothing else; the simulation profile changes nothing and draws nothing.
+    #[test]
+    fn the_hardware_profile_redraws_only_thumb_and_middle_turn_forces() {
+        let problem = turn_problem();
+        let (n, h) = (problem.row_dim(), problem.horizon());
+        let given = vec![vec![7.0; n * h]; 3];
+        let sim = ExecSettings::for_task(SceneKind::Screwdriver);
+        let hw = sim
+            .with_profile(SceneKind::Screwdriver, ExecProfile::Hardware)
+            .unwrap();
+        let mut rng = KernelRng::seed_from_u64(5);
+        let mut kept = given.clone();
+        redraw_forces(&problem, Mode::Turn, &sim, &mut kept, &mut rng);
+        assert_eq!(kept, given);
+        assert_eq!(rng.next_u64(), KernelRng::seed_from_u64(5).next_u64());
+        let mut redrawn = given.clone();
+        redraw_forces(&problem, Mode::Turn, &hw, &mut redrawn, &mut rng);
+        // Screwdriver fingers: index (slot 0), middle (slot 1), thumb (slot 2).
+        let problem_ref = &problem;
+        let force_cols = |slot: usize| (0..3).map(move |k| problem_ref.force_col(slot, k));
+        let replaced: Vec<usize> = force_cols(1).chain(force_cols(2)).collect();
+        for p in &redrawn {
+            for row in p.chunks_exact(n) {
+                for (c, &v) in row.iter().enumerate() {
+                    if replaced.contains(&c) {
+                        assert!(v.abs() < 2.0, "column {c} redrawn to a default force: {v}");
+                    } else {
+                        assert_eq!(v, 7.0, "column {c} kept");
+                    }
+                }
+            }
+        }
+        // Regrasp modes keep their given forces under either profile.
+        let mut regrasp = given.clone();
+        redraw_forces(&problem, Mode::IndexRegrasp, &hw, &mut regrasp, &mut rng);
+        assert_eq!(regrasp, given);
+    }
 }

@@ -569,7 +569,7 @@ pub fn run_online<H: Hand + ?Sized>(
         )?;
         result.hand = hand_name;
         result.card_goals = exec.card_goals;
-        result.card_goals = exec.card_goals;
+        result.exec_profile = exec.profile;
         return Ok(result);
     }
     let mut rng = KernelRng::seed_from_u64(seed);
@@ -707,6 +707,7 @@ pub fn run_online<H: Hand + ?Sized>(
     result.plans = plans;
     result.hand = hand_name;
     result.card_goals = exec.card_goals;
+    result.exec_profile = exec.profile;
     Ok(result)
 }
 
