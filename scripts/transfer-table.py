@@ -14,7 +14,11 @@ clean MuJoCo); and the paper's transfer figures: DIPS's lead over dips-sampled (
 how much further it turns, on valid executions, as the paper's +41 %) and DIPS's MuJoCo turn
 as a share of its turn in our world on the same seeds (the paper kept 74 %).
 
-Usage: scripts/transfer-table.py [RESULTS_DIR] [OUT_JSON]
+The same table for a later transfer run with other settings and seeds (the paper's hardware
+CSVTO settings, screwdriver only: docs/results/screwdriver/hardware-10600-<arm>/):
+`--run hardware-10600 --seeds 10600-10609`; the tasks without such a run are skipped.
+
+Usage: scripts/transfer-table.py [RESULTS_DIR] [OUT_JSON] [--run NAME] [--seeds FIRST-LAST]
 """
 import json
 import math
@@ -24,8 +28,19 @@ from pathlib import Path
 
 from paired import se, trials as read_trials
 
-root = Path(sys.argv[1] if len(sys.argv) > 1 else "docs/results")
-dest = Path(sys.argv[2] if len(sys.argv) > 2 else root / "transfer-10100.json")
+args = sys.argv[1:]
+run_name, seeds = "transfer-10100", "10100-10109"
+for flag in ("--run", "--seeds"):
+    if flag in args:
+        i = args.index(flag)
+        value = args[i + 1]
+        del args[i : i + 2]
+        if flag == "--run":
+            run_name = value
+        else:
+            seeds = value
+root = Path(args[0] if len(args) > 0 else "docs/results")
+dest = Path(args[1] if len(args) > 1 else root / f"{run_name}.json")
 TASKS = ["screwdriver", "card"]
 ARMS = ["world", "mujoco", "mujoco-noisy"]
 METHODS = ["dips", "dips-sampled", "csvto-sampled", "dips-k1", "dips-max-likelihood"]
@@ -37,7 +52,7 @@ PAPER = {
 
 
 def load(task, arm):
-    path = root / task / f"transfer-10100-{arm}" / "results.json"
+    path = root / task / f"{run_name}-{arm}" / "results.json"
     if not path.exists():
         return None, {}
     status = json.loads(path.read_text()).get("registration", {}).get("status", "unregistered")
@@ -48,7 +63,7 @@ def fmt(x, nd=3):
     return "—" if x is None or (isinstance(x, float) and math.isnan(x)) else f"{x:.{nd}f}"
 
 
-summary = {"seeds": "10100-10109", "paper": PAPER, "tasks": {}}
+summary = {"run": run_name, "seeds": seeds, "paper": PAPER, "tasks": {}}
 for task in TASKS:
     unit = "rad" if task == "screwdriver" else "cm"
     nd = 3 if task == "screwdriver" else 2
@@ -84,6 +99,8 @@ for task in TASKS:
                 paired[m] = {"seeds": len(seeds), "mean": st.mean(d), "se": se(d),
                              "dips_better": sum(x < 0 for x in d)}
         arms[arm] = {"status": status, "methods": rows, "dips_minus": paired}
+    if not arms:
+        continue
     # Tracker noise's cost per method (noisy − clean, same seeds; positive: worse).
     noise = {}
     if "mujoco" in arms and "mujoco-noisy" in arms:
