@@ -46,6 +46,12 @@ pub struct MujocoParams {
     pub gravity_compensation: bool,
     /// Contact time constant (s) of MuJoCo's `solref` (damping ratio 1).
     pub contact_timeconst: f64,
+    /// MuJoCo's `impratio`: how much harder the frictional dimensions of a contact are than
+    /// its normal one (elliptic cones). At MuJoCo's default 1, a contact below its friction
+    /// limit still slips slowly (soft friction); 10, as MuJoCo Menagerie's grasping scenes
+    /// use, makes friction stick below the limit as dry friction does, without changing the
+    /// friction coefficients (`docs/mujoco.md`).
+    pub impratio: f64,
     /// Gaussian noise on the reported object pose: position σ (m), rotation σ (rad, per
     /// axis of a small rotation). `None`: the exact pose.
     pub pose_noise: Option<PoseNoise>,
@@ -79,6 +85,7 @@ impl MujocoParams {
             armature,
             gravity_compensation: true,
             contact_timeconst: 0.01,
+            impratio: 10.0,
             pose_noise: None,
             world,
         }
@@ -102,6 +109,7 @@ impl MujocoParams {
             ("kp", self.kp),
             ("armature", self.armature),
             ("contact_timeconst", self.contact_timeconst),
+            ("impratio", self.impratio),
         ];
         for (name, v) in positive {
             if !(v.is_finite() && v > 0.0) {
@@ -179,9 +187,10 @@ pub fn scene_xml(scene: SceneKind, hand: &HandModel, params: &MujocoParams) -> S
     let _ = writeln!(x, r#"  <compiler angle="radian" autolimits="true"/>"#);
     let _ = writeln!(
         x,
-        r#"  <option timestep="{:?}" gravity="0 0 {:?}" integrator="implicitfast" cone="elliptic" solver="Newton" iterations="100" tolerance="1e-10"/>"#,
+        r#"  <option timestep="{:?}" gravity="0 0 {:?}" integrator="implicitfast" cone="elliptic" impratio="{:?}" solver="Newton" iterations="100" tolerance="1e-10"/>"#,
         params.timestep(),
-        -w.gravity
+        -w.gravity,
+        params.impratio
     );
     let _ = writeln!(
         x,

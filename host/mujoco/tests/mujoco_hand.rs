@@ -361,6 +361,8 @@ fn every_contact_pair_has_our_contact_time_constant() {
     for scene in [SceneKind::Screwdriver, SceneKind::Card] {
         let hand = MujocoHand::new(scene).unwrap();
         let model = mujoco_rs::prelude::MjModel::from_xml_string(hand.xml()).unwrap();
+        // Friction ten times harder than the normal direction: no creep below the limit.
+        assert_eq!(model.opt().impratio, 10.0, "{scene:?}");
         let solref = model.pair_solref();
         assert!(!solref.is_empty(), "{scene:?}: no contact pairs");
         for r in solref {
