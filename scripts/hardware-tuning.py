@@ -8,9 +8,10 @@ Usage: scripts/hardware-tuning.py OUT.json NAME=RUN_DIR... [--pair A:B ...]
   --pair NAME_A/METHOD:NAME_B/METHOD  paired mean difference A − B over their common seeds.
 """
 import json
-import math
 import os
 import sys
+
+from paired import se
 
 
 def turn_modes(result):
@@ -42,17 +43,12 @@ def run(directory):
             "trials": len(ys),
             "valid": sum(s["valid"] for s in seeds.values()),
             "mean_final_yaw": sum(ys) / len(ys),
-            "se_final_yaw": stdev(ys) / math.sqrt(len(ys)) if len(ys) > 1 else None,
+            "se_final_yaw": se(ys) if len(ys) > 1 else None,
             "turn_mode_mean_yaw": sum(turns) / len(turns) if turns else None,
             "turn_modes": len(turns),
             "seeds": seeds,
         }
     return methods
-
-
-def stdev(v):
-    m = sum(v) / len(v)
-    return math.sqrt(sum((x - m) ** 2 for x in v) / (len(v) - 1))
 
 
 def main():
@@ -78,7 +74,7 @@ def main():
         summary["paired"][p] = {
             "seeds": len(d),
             "mean": sum(d) / len(d),
-            "se": stdev(d) / math.sqrt(len(d)) if len(d) > 1 else None,
+            "se": se(d) if len(d) > 1 else None,
             "ratio_of_means": sum(sa[s]["final_yaw"] for s in common)
             / sum(sb[s]["final_yaw"] for s in common),
         }

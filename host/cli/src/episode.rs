@@ -123,8 +123,8 @@ pub fn run(args: EpisodeArgs, hands: &dyn Hands) -> anyhow::Result<()> {
         stop_rule: args.online.stop_rule,
         planner_size: args.online.planner_size,
     };
-    let mut exec = ExecSettings::for_task(task)
-        .with_profile(task, args.exec_profile.exec_profile.unwrap_or_default())?;
+    let mut exec =
+        ExecSettings::for_profile(task, args.exec_profile.exec_profile.unwrap_or_default())?;
     let trained = match (&models, &args.models) {
         (Some(m), _) => Some((m.dir.clone(), m.trained_card_goals())),
         // A method without models (csvto-sampled) still executes the goals of models given.

@@ -331,11 +331,10 @@ impl EvalSettings {
     /// How every episode executes its modes: the task's CSVTO settings under
     /// [`EvalSettings::exec_profile`], aiming at [`EvalSettings::card_goals`].
     pub fn exec_settings(&self) -> Result<ExecSettings, ProfileError> {
-        ExecSettings {
+        Ok(ExecSettings {
             card_goals: self.card_goals,
-            ..ExecSettings::for_task(self.task)
-        }
-        .with_profile(self.task, self.exec_profile)
+            ..ExecSettings::for_profile(self.task, self.exec_profile)?
+        })
     }
 
     /// The seed of trial `i`.

@@ -467,9 +467,7 @@ pub fn run_episode_observed<H: Hand + ?Sized>(
     let mut result = EpisodeResult::assemble(
         task, method, seed, &start, &end, runs, planning_s, step_s, valid,
     );
-    result.hand = hand.name();
-    result.card_goals = settings.card_goals;
-    result.exec_profile = settings.profile;
+    result.record_execution(hand.name(), settings);
     Ok(result)
 }
 
@@ -520,6 +518,14 @@ impl EpisodeResult {
             card_goals: CardGoals::default(),
             exec_profile: ExecProfile::Simulation,
         }
+    }
+
+    /// Record what executed the episode: the hand's name ([`Hand::name`]) and the execution
+    /// settings that reach `result.json` (the card's goals, the CSVTO profile).
+    pub fn record_execution(&mut self, hand: &'static str, settings: &ExecSettings) {
+        self.hand = hand;
+        self.card_goals = settings.card_goals;
+        self.exec_profile = settings.profile;
     }
 }
 

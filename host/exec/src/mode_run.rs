@@ -488,9 +488,7 @@ mod tests {
         let (n, h) = (problem.row_dim(), problem.horizon());
         let given = vec![vec![7.0; n * h]; 3];
         let sim = ExecSettings::for_task(SceneKind::Screwdriver);
-        let hw = sim
-            .with_profile(SceneKind::Screwdriver, ExecProfile::Hardware)
-            .unwrap();
+        let hw = ExecSettings::for_profile(SceneKind::Screwdriver, ExecProfile::Hardware).unwrap();
         let mut rng = KernelRng::seed_from_u64(5);
         let mut kept = given.clone();
         redraw_forces(&problem, Mode::Turn, &sim, &mut kept, &mut rng);

@@ -72,7 +72,7 @@ pub enum ExecProfile {
     Hardware,
 }
 
-/// A profile that does not exist for a task ([`ExecSettings::with_profile`]).
+/// A profile that does not exist for a task ([`ExecSettings::for_profile`]).
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 #[error(
     "the {profile} CSVTO settings do not exist for the {task} task: the paper's hardware \
@@ -191,22 +191,24 @@ impl ExecSettings {
         }
     }
 
-    /// These settings under `profile`: [`ExecProfile::Hardware`] sets the paper's hardware
-    /// budget (α_J = 1e-2, 250 / 50 iterations) and records the profile, which the mode's
-    /// initialisation reads ([`ExecProfile::redraws_diffused_forces`]);
-    /// [`ExecProfile::Simulation`] leaves them as they are. The hardware profile exists for the screwdriver only.
-    pub fn with_profile(self, task: SceneKind, profile: ExecProfile) -> Result<Self, ProfileError> {
+    /// The task's settings under `profile`: [`ExecProfile::Simulation`] is
+    /// [`ExecSettings::for_task`]; [`ExecProfile::Hardware`] sets the paper's hardware budget
+    /// (α_J = 1e-2, 250 / 50 iterations) and records the profile, which the mode's
+    /// initialisation reads ([`ExecProfile::redraws_diffused_forces`]). The hardware profile
+    /// exists for the screwdriver only.
+    pub fn for_profile(task: SceneKind, profile: ExecProfile) -> Result<Self, ProfileError> {
+        let base = Self::for_task(task);
         match (profile, task) {
-            (ExecProfile::Simulation, _) => Ok(Self { profile, ..self }),
+            (ExecProfile::Simulation, _) => Ok(base),
             (ExecProfile::Hardware, SceneKind::Screwdriver) => Ok(Self {
                 csvto: CsvtoSettings {
                     alpha_j: 1e-2,
-                    ..self.csvto
+                    ..base.csvto
                 },
                 warmup_iters: 250,
                 online_iters: 50,
                 profile,
-                ..self
+                ..base
             }),
             (ExecProfile::Hardware, SceneKind::Card) => Err(ProfileError {
                 profile,
@@ -223,19 +225,16 @@ mod tests {
     #[test]
     fn the_hardware_profile_is_the_papers_hardware_budget_for_the_screwdriver_only() {
         let sim = ExecSettings::for_task(SceneKind::Screwdriver);
-        let hw = sim
-            .with_profile(SceneKind::Screwdriver, ExecProfile::Hardware)
-            .unwrap();
+        let hw = ExecSettings::for_profile(SceneKind::Screwdriver, ExecProfile::Hardware).unwrap();
         assert_eq!((hw.warmup_iters, hw.online_iters), (250, 50));
         assert_eq!(hw.csvto.alpha_j, 1e-2);
         assert_eq!(hw.particles, sim.particles);
         assert_eq!(hw.horizon, sim.horizon);
         assert_eq!(
-            sim.with_profile(SceneKind::Screwdriver, ExecProfile::Simulation),
+            ExecSettings::for_profile(SceneKind::Screwdriver, ExecProfile::Simulation),
             Ok(sim)
         );
-        let err = ExecSettings::for_task(SceneKind::Card)
-            .with_profile(SceneKind::Card, ExecProfile::Hardware)
+        let err = ExecSettings::for_profile(SceneKind::Card, ExecProfile::Hardware)
             .unwrap_err()
             .to_string();
         assert!(err.contains("hardware") && err.contains("card") && err.contains("simulation"));

@@ -567,9 +567,7 @@ pub fn run_online<H: Hand + ?Sized>(
             runs,
             progress,
         )?;
-        result.hand = hand_name;
-        result.card_goals = exec.card_goals;
-        result.exec_profile = exec.profile;
+        result.record_execution(hand_name, exec);
         return Ok(result);
     }
     let mut rng = KernelRng::seed_from_u64(seed);
@@ -705,9 +703,7 @@ pub fn run_online<H: Hand + ?Sized>(
         valid,
     );
     result.plans = plans;
-    result.hand = hand_name;
-    result.card_goals = exec.card_goals;
-    result.exec_profile = exec.profile;
+    result.record_execution(hand_name, exec);
     Ok(result)
 }
 
