@@ -34,7 +34,9 @@ if ! command -v python3 >/dev/null 2>&1; then
 fi
 chromium --version 2>/dev/null || true
 
-cargo build --release -p dips-report --example episode_report
+# --workspace: the features the whole workspace resolves, as `cargo test --workspace --release`
+# built them; `-p dips-report` alone resolves fewer and rebuilds nalgebra and what is above it.
+cargo build --release --workspace --example episode_report
 report=target/release/examples/episode_report
 
 work=$(mktemp -d)
