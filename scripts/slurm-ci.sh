@@ -102,20 +102,39 @@ for _ in $(seq 600); do [ -f "$first" ] && break; sleep 0.5; done
 [ -f "$first" ] || { echo "slurm-ci: the fault job never finished its first episode" >&2; exit 1; }
 before=$(sha256sum "$first")
 scontrol requeue "${job}_0"
-# A requeued job is held back by a begin time (about two minutes); let it start now.
-for _ in $(seq 120); do
+# A requeued job is held back by a begin time (about two minutes); let it start now, every
+# time it is seen pending, until its second episode is written. Waiting for `squeue` to show
+# it running, then for it to leave the queue, was not enough: on one CI machine the task was
+# never seen running within a minute of the requeue and then not listed at all, and the check
+# went on before the rerun had started. The states it passes through are printed.
+second=$fault/episodes/csvto-sampled/seed-1/wall.json
+deadline=$(( $(date +%s) + 300 ))
+seen=""
+until [ -f "$second" ]; do
+    if [ "$(date +%s)" -gt "$deadline" ]; then
+        echo "slurm-ci: the requeued shard did not finish in 300 s (its states:$seen)" >&2
+        squeue >&2 || true
+        scontrol show job "$job" >&2 || true
+        sinfo -N >&2 || true
+        tail -n 20 "$work"/logs/* "${DIPS_SLURM_DIR:-/tmp/dips-slurm}"/slurmctld.log >&2 || true
+        exit 1
+    fi
     state=$(squeue -h -j "${job}_0" -o %T 2>/dev/null || true)
-    case "$state" in
-        RUNNING) break ;;
-        PENDING) scontrol update jobid="${job}_0" starttime=now >/dev/null 2>&1 || true ;;
+    [ "${state:-none}" = "${seen##* }" ] || seen="$seen ${state:-none}"
+    if [ "$state" = PENDING ]; then
+        scontrol update jobid="${job}_0" starttime=now >/dev/null 2>&1 || true
+        scontrol release "${job}_0" >/dev/null 2>&1 || true # a held requeue (harmless if not)
+    fi
+    # A node drained by the kill (a slow process end) takes no job: return it to service.
+    case "$(sinfo -h -N -o %t 2>/dev/null | head -1)" in
+        drain*|down*) scontrol update nodename="$(hostname -s)" state=resume >/dev/null 2>&1 || true ;;
     esac
-    sleep 0.5
+    sleep 1
 done
-echo "slurm-ci: [$(( $(date +%s) - started )) s] requeued ${job}_0 after its first episode"
-wait_jobs 300 "$job"
+echo "slurm-ci: [$(( $(date +%s) - started )) s] requeued ${job}_0 after its first episode; it finished (states:$seen)"
+wait_jobs 120 "$job"
 after=$(sha256sum "$first")
 [ "$before" = "$after" ] || { echo "slurm-ci: the requeued shard rewrote its finished episode" >&2; exit 1; }
-[ -f "$fault/episodes/csvto-sampled/seed-1/wall.json" ] || { echo "slurm-ci: the requeued shard did not finish" >&2; tail -n 20 "$work"/logs/* >&2; exit 1; }
 grep -q "resuming: 1 of this shard's 2 episodes are done" "$work"/logs/dips-eval-"$job"_0.out \
     || { echo "slurm-ci: the requeued shard's log does not say it resumed" >&2; cat "$work"/logs/dips-eval-"$job"_0.out >&2; exit 1; }
 echo "slurm-ci: the requeued shard resumed without redoing its finished episode"
