@@ -313,6 +313,11 @@ pub fn run(args: EvalArgs, hands: &dyn Hands) -> anyhow::Result<()> {
             .exec_profile
             .or(given.map(|e| e.episode.exec_profile))
             .unwrap_or_default(),
+        pose_estimate: args
+            .exec_profile
+            .pose_estimate
+            .or(given.map(|e| e.episode.pose_estimate))
+            .unwrap_or_default(),
     };
     settings.card_goals = args.card_goals.resolve(
         task.task(),

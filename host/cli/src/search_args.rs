@@ -9,7 +9,7 @@ use std::str::FromStr;
 
 use clap::Args;
 use clap::builder::{PossibleValue, TypedValueParser};
-use dips_exec::ExecProfile;
+use dips_exec::{ExecProfile, PoseEstimate};
 use dips_kernel::diffusion::SamplerConfig;
 use dips_kernel::mode::Task;
 use dips_kernel::search::{CostToCome, SearchOverrides};
@@ -131,21 +131,35 @@ impl Named for ExecProfile {
     const NAMES: &'static [&'static str] = &ExecProfile::NAMES;
     const HELP: &'static [&'static str] = &[
         "The paper's simulation settings",
-        "The paper's hardware experiment's (§V-D): α_J 1e-2, 250/50 iterations, thumb and \
-         middle push with ≥ 2.5 N, their diffused turn forces redrawn; screwdriver only",
+        "The paper's hardware experiment's (§V-D): α_J 1e-2, 250/50 iterations, the thumb's \
+         and middle finger's diffused turn forces redrawn; screwdriver only",
     ];
 }
 
-/// `--exec-profile` of `dips episode` and `dips eval`: which of the paper's CSVTO settings
-/// execute the modes. The planner and its models are the same under both.
+impl Named for PoseEstimate {
+    const NAMES: &'static [&'static str] = &PoseEstimate::NAMES;
+    const HELP: &'static [&'static str] = &[
+        "The tracker's reading as it comes",
+        "The tracker's reading fused with the mode's contacts (fingertips on the surface)",
+    ];
+}
+
+/// `--exec-profile` and `--pose-estimate` of `dips episode` and `dips eval`: how the modes
+/// are executed (which of the paper's CSVTO settings, from which object pose). The planner
+/// and its models are the same under all.
 #[derive(Debug, Clone, Copy, Default, Args)]
 pub struct ExecProfileArgs {
     /// The CSVTO settings that execute the modes: `simulation` (the default) or `hardware`
-    /// (the paper's hardware experiment, §V-D: α_J 1e-2, 250/50 iterations, the thumb and
-    /// middle finger push with at least 2.5 N and their diffused `turn` forces are redrawn;
-    /// the screwdriver only). `dips eval` resumes with the directory's.
+    /// (the paper's hardware experiment, §V-D: α_J 1e-2, 250/50 iterations, the thumb's and
+    /// middle finger's diffused `turn` forces redrawn; the screwdriver only). `dips eval`
+    /// resumes with the directory's.
     #[arg(long, value_parser = named::<ExecProfile>())]
     pub exec_profile: Option<ExecProfile>,
+    /// The object pose each CSVTO solve starts from: `tracker` (the default: the hand's
+    /// reading as it comes) or `contacts` (that reading fused with the mode's contacts, for
+    /// a noisy tracker; docs/mujoco.md). `dips eval` resumes with the directory's.
+    #[arg(long, value_parser = named::<PoseEstimate>())]
+    pub pose_estimate: Option<PoseEstimate>,
 }
 
 impl Named for PlannerSize {

@@ -992,6 +992,7 @@ mod tests {
                 stop_rule: Default::default(),
                 planner_size: Default::default(),
                 exec_profile: Default::default(),
+                pose_estimate: Default::default(),
             },
             methods: vec![Method::Dips],
             first_seed,

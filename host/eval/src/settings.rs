@@ -3,7 +3,7 @@
 use std::path::{Path, PathBuf};
 
 use dips_batch::{ProgressMode, Shard};
-use dips_exec::{ExecProfile, ExecSettings, ProfileError};
+use dips_exec::{ExecProfile, ExecSettings, PoseEstimate, ProfileError};
 use dips_kernel::diffusion::SamplingMethod;
 use dips_kernel::search::CostToCome;
 use dips_kernel::task::CardGoals;
@@ -81,6 +81,10 @@ pub struct EpisodeSettings {
     /// they are not the simulation's: absent means `simulation`.
     #[serde(default, skip_serializing_if = "ExecProfile::is_simulation")]
     pub exec_profile: ExecProfile,
+    /// The object pose the modes' solves start from (`--pose-estimate`). Written only when
+    /// it is not the tracker's: absent means `tracker`.
+    #[serde(default, skip_serializing_if = "PoseEstimate::is_tracker")]
+    pub pose_estimate: PoseEstimate,
 }
 
 impl EpisodeSettings {
@@ -158,6 +162,8 @@ pub struct EvalSettings {
     pub card_goals: CardGoals,
     /// Which of the paper's CSVTO settings execute the modes (`--exec-profile`).
     pub exec_profile: ExecProfile,
+    /// The object pose the modes' solves start from (`--pose-estimate`).
+    pub pose_estimate: PoseEstimate,
     /// The run's registration under a protocol (`dips eval --protocol`,
     /// [`crate::protocol::ProtocolFile::register`]), written to `registration.json` when the
     /// directory is claimed; `None` for a run without a protocol.
@@ -329,10 +335,12 @@ impl EvalSettings {
     }
 
     /// How every episode executes its modes: the task's CSVTO settings under
-    /// [`EvalSettings::exec_profile`], aiming at [`EvalSettings::card_goals`].
+    /// [`EvalSettings::exec_profile`], aiming at [`EvalSettings::card_goals`], starting each
+    /// solve from [`EvalSettings::pose_estimate`].
     pub fn exec_settings(&self) -> Result<ExecSettings, ProfileError> {
         Ok(ExecSettings {
             card_goals: self.card_goals,
+            pose_estimate: self.pose_estimate,
             ..ExecSettings::for_profile(self.task, self.exec_profile)?
         })
     }
@@ -386,6 +394,7 @@ impl EvalSettings {
             stop_rule: self.online.stop_rule,
             planner_size: self.online.planner_size,
             exec_profile: self.exec_profile,
+            pose_estimate: self.pose_estimate,
         }
     }
 }
@@ -523,6 +532,7 @@ mod tests {
             stop_rule: StopRule::GoalReached,
             planner_size: PlannerSize::Paper,
             exec_profile: ExecProfile::Simulation,
+            pose_estimate: PoseEstimate::Tracker,
         }
     }
 
@@ -551,6 +561,21 @@ mod tests {
                 "\"hardware\"".into()
             )
         );
+        // The pose estimate likewise: absent is the tracker's, `contacts` is written.
+        assert!(
+            serde_json::to_value(&sim)
+                .unwrap()
+                .get("pose_estimate")
+                .is_none()
+        );
+        let fused = EpisodeSettings {
+            pose_estimate: PoseEstimate::Contacts,
+            ..sim.clone()
+        };
+        let v = serde_json::to_value(&fused).unwrap();
+        assert_eq!(v["pose_estimate"], "contacts");
+        assert_eq!(serde_json::from_value::<EpisodeSettings>(v).unwrap(), fused);
+        assert_eq!(sim.first_difference(&fused).0, "pose_estimate");
     }
 
     #[test]

@@ -53,6 +53,7 @@ fn settings(methods: Vec<Method>, trials: usize) -> EvalSettings {
         registration: None,
         card_goals: Default::default(),
         exec_profile: Default::default(),
+        pose_estimate: Default::default(),
     }
 }
 

@@ -74,6 +74,7 @@ fn settings(models: &Path, methods: Vec<Method>, first_seed: u64) -> EvalSetting
         registration: None,
         card_goals: Default::default(),
         exec_profile: Default::default(),
+        pose_estimate: Default::default(),
     }
 }
 

@@ -13,6 +13,7 @@ use super::mode_run::{
     ExecError, ModeRun, StepParticles, pose_valid, run_mode_observed, true_hand_state,
 };
 use super::settings::{ExecProfile, ExecSettings};
+use crate::pose_estimate::PoseEstimate;
 use crate::problems::Mode;
 use dips_world::hand::Hand;
 use dips_world::kinematics::HandModel;
@@ -277,6 +278,10 @@ pub struct EpisodeResult {
     /// when the simulation's, as in files written before it was recorded.
     #[serde(skip_serializing_if = "ExecProfile::is_simulation")]
     pub exec_profile: ExecProfile,
+    /// The object pose the modes' solves started from ([`ExecSettings::pose_estimate`]); left
+    /// out when the tracker's, as in files written before it was recorded.
+    #[serde(skip_serializing_if = "PoseEstimate::is_tracker")]
+    pub pose_estimate: PoseEstimate,
 }
 
 /// One planning call of an online method (`result.json`'s `plans`).
@@ -517,15 +522,18 @@ impl EpisodeResult {
             plans: Vec::new(),
             card_goals: CardGoals::default(),
             exec_profile: ExecProfile::Simulation,
+            pose_estimate: PoseEstimate::Tracker,
         }
     }
 
     /// Record what executed the episode: the hand's name ([`Hand::name`]) and the execution
-    /// settings that reach `result.json` (the card's goals, the CSVTO profile).
+    /// settings that reach `result.json` (the card's goals, the CSVTO profile, the pose
+    /// estimate).
     pub fn record_execution(&mut self, hand: &'static str, settings: &ExecSettings) {
         self.hand = hand;
         self.card_goals = settings.card_goals;
         self.exec_profile = settings.profile;
+        self.pose_estimate = settings.pose_estimate;
     }
 }
 

@@ -7,10 +7,13 @@
 //! - [`problems`]: the Allegro contact trajectory-optimisation problems CSVTO solves;
 //! - [`settings`]: per-task CSVTO settings (spec §1.6);
 //! - [`mode_run`]: one contact mode executed on a hand;
+//! - [`pose_estimate`]: the object pose each solve starts from (the tracker's, or fused with
+//!   the mode's contacts);
 //! - [`episode`]: a sequence of modes (given or drawn from the task's prior) and its result.
 
 pub mod episode;
 pub mod mode_run;
+pub mod pose_estimate;
 pub mod problems;
 pub mod settings;
 
@@ -23,4 +26,5 @@ pub use mode_run::{
     ExecError, ModeRun, StepLog, StepParticles, hand_state, mode_goal, pose_valid, run_mode,
     run_mode_observed, true_hand_state,
 };
+pub use pose_estimate::PoseEstimate;
 pub use settings::{ExecProfile, ExecSettings, ProfileError};

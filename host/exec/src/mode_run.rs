@@ -225,6 +225,30 @@ fn redraw_forces(
     }
 }
 
+/// The problem of `spec`, whose start is the measured state, after the settings' pose
+/// estimate ([`PoseEstimate`](crate::pose_estimate::PoseEstimate)) has replaced the start's object coordinates; with
+/// `set_goal` (a mode's first solve) the mode's goal is taken from the estimated start.
+fn estimated_problem<H: Hand + ?Sized>(
+    hand: &H,
+    model: &HandModel,
+    spec: &mut ProblemSpec,
+    settings: &ExecSettings,
+    set_goal: bool,
+) -> Result<AllegroProblem, ExecError> {
+    let problem = AllegroProblem::new(model, spec)?;
+    if settings.pose_estimate.is_tracker() {
+        return Ok(problem);
+    }
+    let readings = hand.contact_readings();
+    spec.start = settings
+        .pose_estimate
+        .apply(&problem, &spec.start, readings.as_deref());
+    if set_goal {
+        spec.goal = mode_goal(spec.mode, &spec.start, settings.card_goals);
+    }
+    Ok(AllegroProblem::new(model, spec)?)
+}
+
 /// Execute `mode` on `hand` (the quasi-static world, a recorder around it, or a real hand)
 /// closed-loop: warm-up solve on `initial` particles (or the default initialisation), then a
 /// re-solve at every step with the shrinking horizon, commanding `q + Δq₀` of the best
@@ -278,16 +302,16 @@ pub fn run_mode_observed<H: Hand + ?Sized>(
     settings.validate()?;
     let task: SceneKind = hand.scene();
     let start_state = hand_state(hand);
-    let goal = mode_goal(mode, &start_state, settings.card_goals);
     let h = settings.horizon;
     let mut spec = ProblemSpec {
         task,
         mode,
         horizon: h,
         start: start_state.clone(),
-        goal,
+        goal: mode_goal(mode, &start_state, settings.card_goals),
     };
-    let mut problem = AllegroProblem::new(model, &spec)?;
+    let mut problem = estimated_problem(hand, model, &mut spec, settings, true)?;
+    let goal = spec.goal;
     let n = problem.row_dim();
     let given_initial = initial.is_some();
     let mut particles = match initial {
@@ -320,7 +344,7 @@ pub fn run_mode_observed<H: Hand + ?Sized>(
             shift(&mut particles, n);
             spec.start = hand_state(hand);
             spec.horizon = h - k;
-            problem = AllegroProblem::new(model, &spec)?;
+            problem = estimated_problem(hand, model, &mut spec, settings, false)?;
             settings.online_iters
         };
         let t0 = Instant::now();

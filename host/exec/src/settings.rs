@@ -6,6 +6,7 @@ use dips_kernel::task::CardGoals;
 use dips_world::kinematics::Finger;
 use dips_world::scenes::SceneKind;
 
+use crate::pose_estimate::PoseEstimate;
 use crate::problems::Mode;
 
 /// Largest constraint violation of a converged warm-up. Screwdriver warm-ups end below it
@@ -47,6 +48,11 @@ pub struct ExecSettings {
     /// files when the simulation's, so those written before it existed still match.
     #[serde(skip_serializing_if = "ExecProfile::is_simulation")]
     pub profile: ExecProfile,
+    /// The object pose each solve starts from ([`PoseEstimate`]): the tracker's reading by
+    /// default (then left out of settings files), or that reading fused with the mode's
+    /// contacts.
+    #[serde(skip_serializing_if = "PoseEstimate::is_tracker")]
+    pub pose_estimate: PoseEstimate,
 }
 
 /// Which of the paper's two CSVTO settings execute the modes: those of its simulation
@@ -172,6 +178,7 @@ impl ExecSettings {
                 warmup_retries: WARMUP_RETRIES,
                 card_goals: CardGoals::default(),
                 profile: ExecProfile::Simulation,
+                pose_estimate: PoseEstimate::Tracker,
             },
             SceneKind::Card => Self {
                 csvto: CsvtoSettings {
@@ -187,6 +194,7 @@ impl ExecSettings {
                 warmup_retries: WARMUP_RETRIES,
                 card_goals: CardGoals::default(),
                 profile: ExecProfile::Simulation,
+                pose_estimate: PoseEstimate::Tracker,
             },
         }
     }
