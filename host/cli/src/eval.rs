@@ -318,6 +318,11 @@ pub fn run(args: EvalArgs, hands: &dyn Hands) -> anyhow::Result<()> {
             .pose_estimate
             .or(given.map(|e| e.episode.pose_estimate))
             .unwrap_or_default(),
+        regrasp_guard: args
+            .exec_profile
+            .regrasp_guard
+            .or(given.map(|e| e.episode.regrasp_guard))
+            .unwrap_or_default(),
     };
     settings.card_goals = args.card_goals.resolve(
         task.task(),

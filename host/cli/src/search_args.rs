@@ -9,7 +9,7 @@ use std::str::FromStr;
 
 use clap::Args;
 use clap::builder::{PossibleValue, TypedValueParser};
-use dips_exec::{ExecProfile, PoseEstimate};
+use dips_exec::{ExecProfile, PoseEstimate, RegraspGuard};
 use dips_kernel::diffusion::SamplerConfig;
 use dips_kernel::mode::Task;
 use dips_kernel::search::{CostToCome, SearchOverrides};
@@ -144,9 +144,18 @@ impl Named for PoseEstimate {
     ];
 }
 
-/// `--exec-profile` and `--pose-estimate` of `dips episode` and `dips eval`: how the modes
-/// are executed (which of the paper's CSVTO settings, from which object pose). The planner
-/// and its models are the same under all.
+impl Named for RegraspGuard {
+    const NAMES: &'static [&'static str] = &RegraspGuard::NAMES;
+    const HELP: &'static [&'static str] = &[
+        "Every command as CSVTO's plan gives it (the paper's execution)",
+        "Regrasping fingers kept 7.5 mm clear of the object until their touch-down step",
+    ];
+}
+
+/// `--exec-profile`, `--pose-estimate` and `--regrasp-guard` of `dips episode` and `dips
+/// eval`: how the modes are executed (which of the paper's CSVTO settings, from which object
+/// pose, with which guard on the commands). The planner and its models are the same under
+/// all.
 #[derive(Debug, Clone, Copy, Default, Args)]
 pub struct ExecProfileArgs {
     /// The CSVTO settings that execute the modes: `simulation` (the default) or `hardware`
@@ -160,6 +169,12 @@ pub struct ExecProfileArgs {
     /// a noisy tracker; docs/mujoco.md). `dips eval` resumes with the directory's.
     #[arg(long, value_parser = named::<PoseEstimate>())]
     pub pose_estimate: Option<PoseEstimate>,
+    /// Whether the controller guards regrasping fingers' commands: `off` (the default: the
+    /// paper's execution) or `clearance` (no regrasping finger is commanded closer than
+    /// 7.5 mm to the object before its mode's last step; one that is closer is lifted away
+    /// from the surface; docs/mujoco.md). `dips eval` resumes with the directory's.
+    #[arg(long, value_parser = named::<RegraspGuard>())]
+    pub regrasp_guard: Option<RegraspGuard>,
 }
 
 impl Named for PlannerSize {

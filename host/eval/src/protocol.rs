@@ -993,6 +993,7 @@ mod tests {
                 planner_size: Default::default(),
                 exec_profile: Default::default(),
                 pose_estimate: Default::default(),
+                regrasp_guard: Default::default(),
             },
             methods: vec![Method::Dips],
             first_seed,

@@ -3,7 +3,7 @@
 use std::path::{Path, PathBuf};
 
 use dips_batch::{ProgressMode, Shard};
-use dips_exec::{ExecProfile, ExecSettings, PoseEstimate, ProfileError};
+use dips_exec::{ExecProfile, ExecSettings, PoseEstimate, ProfileError, RegraspGuard};
 use dips_kernel::diffusion::SamplingMethod;
 use dips_kernel::search::CostToCome;
 use dips_kernel::task::CardGoals;
@@ -85,6 +85,10 @@ pub struct EpisodeSettings {
     /// it is not the tracker's: absent means `tracker`.
     #[serde(default, skip_serializing_if = "PoseEstimate::is_tracker")]
     pub pose_estimate: PoseEstimate,
+    /// Whether regrasping fingers' commands are guarded (`--regrasp-guard`). Written only
+    /// when on: absent means `off`.
+    #[serde(default, skip_serializing_if = "RegraspGuard::is_off")]
+    pub regrasp_guard: RegraspGuard,
 }
 
 impl EpisodeSettings {
@@ -164,6 +168,8 @@ pub struct EvalSettings {
     pub exec_profile: ExecProfile,
     /// The object pose the modes' solves start from (`--pose-estimate`).
     pub pose_estimate: PoseEstimate,
+    /// Whether regrasping fingers' commands are guarded (`--regrasp-guard`).
+    pub regrasp_guard: RegraspGuard,
     /// The run's registration under a protocol (`dips eval --protocol`,
     /// [`crate::protocol::ProtocolFile::register`]), written to `registration.json` when the
     /// directory is claimed; `None` for a run without a protocol.
@@ -336,11 +342,12 @@ impl EvalSettings {
 
     /// How every episode executes its modes: the task's CSVTO settings under
     /// [`EvalSettings::exec_profile`], aiming at [`EvalSettings::card_goals`], starting each
-    /// solve from [`EvalSettings::pose_estimate`].
+    /// solve from [`EvalSettings::pose_estimate`], with [`EvalSettings::regrasp_guard`].
     pub fn exec_settings(&self) -> Result<ExecSettings, ProfileError> {
         Ok(ExecSettings {
             card_goals: self.card_goals,
             pose_estimate: self.pose_estimate,
+            regrasp_guard: self.regrasp_guard,
             ..ExecSettings::for_profile(self.task, self.exec_profile)?
         })
     }
@@ -395,6 +402,7 @@ impl EvalSettings {
             planner_size: self.online.planner_size,
             exec_profile: self.exec_profile,
             pose_estimate: self.pose_estimate,
+            regrasp_guard: self.regrasp_guard,
         }
     }
 }
@@ -533,6 +541,7 @@ mod tests {
             planner_size: PlannerSize::Paper,
             exec_profile: ExecProfile::Simulation,
             pose_estimate: PoseEstimate::Tracker,
+            regrasp_guard: RegraspGuard::Off,
         }
     }
 
@@ -576,6 +585,24 @@ mod tests {
         assert_eq!(v["pose_estimate"], "contacts");
         assert_eq!(serde_json::from_value::<EpisodeSettings>(v).unwrap(), fused);
         assert_eq!(sim.first_difference(&fused).0, "pose_estimate");
+        // The regrasp guard likewise: absent is off, `clearance` is written.
+        let guarded = EpisodeSettings {
+            regrasp_guard: RegraspGuard::Clearance,
+            ..sim.clone()
+        };
+        let v = serde_json::to_value(&guarded).unwrap();
+        assert_eq!(v["regrasp_guard"], "clearance");
+        assert_eq!(
+            serde_json::from_value::<EpisodeSettings>(v).unwrap(),
+            guarded
+        );
+        assert_eq!(sim.first_difference(&guarded).0, "regrasp_guard");
+        assert!(
+            serde_json::to_value(&sim)
+                .unwrap()
+                .get("regrasp_guard")
+                .is_none()
+        );
     }
 
     #[test]

@@ -54,6 +54,7 @@ fn settings(methods: Vec<Method>, trials: usize) -> EvalSettings {
         card_goals: Default::default(),
         exec_profile: Default::default(),
         pose_estimate: Default::default(),
+        regrasp_guard: Default::default(),
     }
 }
 

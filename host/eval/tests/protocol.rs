@@ -75,6 +75,7 @@ fn settings(models: &Path, methods: Vec<Method>, first_seed: u64) -> EvalSetting
         card_goals: Default::default(),
         exec_profile: Default::default(),
         pose_estimate: Default::default(),
+        regrasp_guard: Default::default(),
     }
 }
 

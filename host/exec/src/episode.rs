@@ -15,6 +15,7 @@ use super::mode_run::{
 use super::settings::{ExecProfile, ExecSettings};
 use crate::pose_estimate::PoseEstimate;
 use crate::problems::Mode;
+use crate::regrasp_guard::RegraspGuard;
 use dips_world::hand::Hand;
 use dips_world::kinematics::HandModel;
 use dips_world::scenes::{SceneKind, card};
@@ -282,6 +283,10 @@ pub struct EpisodeResult {
     /// out when the tracker's, as in files written before it was recorded.
     #[serde(skip_serializing_if = "PoseEstimate::is_tracker")]
     pub pose_estimate: PoseEstimate,
+    /// Whether regrasping fingers' commands were guarded ([`ExecSettings::regrasp_guard`]);
+    /// left out when off, as in files written before the guard existed.
+    #[serde(skip_serializing_if = "RegraspGuard::is_off")]
+    pub regrasp_guard: RegraspGuard,
 }
 
 /// One planning call of an online method (`result.json`'s `plans`).
@@ -523,17 +528,19 @@ impl EpisodeResult {
             card_goals: CardGoals::default(),
             exec_profile: ExecProfile::Simulation,
             pose_estimate: PoseEstimate::Tracker,
+            regrasp_guard: RegraspGuard::Off,
         }
     }
 
     /// Record what executed the episode: the hand's name ([`Hand::name`]) and the execution
     /// settings that reach `result.json` (the card's goals, the CSVTO profile, the pose
-    /// estimate).
+    /// estimate, the regrasp guard).
     pub fn record_execution(&mut self, hand: &'static str, settings: &ExecSettings) {
         self.hand = hand;
         self.card_goals = settings.card_goals;
         self.exec_profile = settings.profile;
         self.pose_estimate = settings.pose_estimate;
+        self.regrasp_guard = settings.regrasp_guard;
     }
 }
 

@@ -9,12 +9,14 @@
 //! - [`mode_run`]: one contact mode executed on a hand;
 //! - [`pose_estimate`]: the object pose each solve starts from (the tracker's, or fused with
 //!   the mode's contacts);
+//! - [`regrasp_guard`]: keeps regrasping fingers off the object until their touch-down step;
 //! - [`episode`]: a sequence of modes (given or drawn from the task's prior) and its result.
 
 pub mod episode;
 pub mod mode_run;
 pub mod pose_estimate;
 pub mod problems;
+pub mod regrasp_guard;
 pub mod settings;
 
 pub use episode::{
@@ -27,4 +29,5 @@ pub use mode_run::{
     run_mode_observed, true_hand_state,
 };
 pub use pose_estimate::PoseEstimate;
+pub use regrasp_guard::RegraspGuard;
 pub use settings::{ExecProfile, ExecSettings, ProfileError};

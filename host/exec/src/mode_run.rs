@@ -9,6 +9,7 @@ use serde::Serialize;
 use super::settings::ExecSettings;
 use crate::problems::init::default_particles;
 use crate::problems::{AllegroProblem, Mode, ProblemError, ProblemSpec};
+use crate::regrasp_guard::{GuardAction, guard_regrasps};
 use dips_csvto::{CsvtoError, Problem, SolveReport, solve};
 use dips_world::hand::{Hand, HandError, ObjectPose};
 use dips_world::kinematics::HandModel;
@@ -94,6 +95,11 @@ pub struct StepLog {
     pub tip_sdf: Vec<f64>,
     /// Whether the object is still valid.
     pub valid: bool,
+    /// What the regrasp guard did to each task finger's command
+    /// ([`RegraspGuard`](crate::regrasp_guard::RegraspGuard)); empty when it changed none
+    /// (and then left out of `result.json`).
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub guarded: Vec<Option<GuardAction>>,
     /// The contacts and their forces after the step, where the hand senses them
     /// ([`Hand::contact_readings`]; the simulated world always does); empty otherwise.
     pub contacts: Vec<dips_world::world::ContactReport>,
@@ -389,10 +395,17 @@ pub fn run_mode_observed<H: Hand + ?Sized>(
             particles: &particles,
         });
         let best = &particles[0];
-        let dq: Vec<f64> = (0..nq)
+        let mut dq: Vec<f64> = (0..nq)
             .map(|c| best[problem.dq_col(c / 4, c % 4)])
             .collect();
         let planned_state = problem.to_world_units(&best[..problem.state_dim()]);
+        let mut guarded = Vec::new();
+        if !settings.regrasp_guard.is_off() {
+            let actions = guard_regrasps(&problem, &hand_state(hand), &mut dq, k + 1 == h);
+            if actions.iter().any(Option::is_some) {
+                guarded = actions;
+            }
+        }
         command_deltas(hand, &dq)?;
         let state = hand_state(hand);
         let o = [state[nq], state[nq + 1], state[nq + 2]];
@@ -453,6 +466,7 @@ pub fn run_mode_observed<H: Hand + ?Sized>(
             state,
             tip_sdf,
             valid,
+            guarded,
             contacts: hand.contact_readings().unwrap_or_default(),
         });
     }

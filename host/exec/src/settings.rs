@@ -8,6 +8,7 @@ use dips_world::scenes::SceneKind;
 
 use crate::pose_estimate::PoseEstimate;
 use crate::problems::Mode;
+use crate::regrasp_guard::RegraspGuard;
 
 /// Largest constraint violation of a converged warm-up. Screwdriver warm-ups end below it
 /// (all but one in the 10-seed episodes). Every card warm-up ends at 0.44–0.66 (the first
@@ -53,6 +54,10 @@ pub struct ExecSettings {
     /// contacts.
     #[serde(skip_serializing_if = "PoseEstimate::is_tracker")]
     pub pose_estimate: PoseEstimate,
+    /// Whether regrasping fingers' commands are guarded ([`RegraspGuard`]): off by default
+    /// (the paper's execution; then left out of settings files).
+    #[serde(skip_serializing_if = "RegraspGuard::is_off")]
+    pub regrasp_guard: RegraspGuard,
 }
 
 /// Which of the paper's two CSVTO settings execute the modes: those of its simulation
@@ -179,6 +184,7 @@ impl ExecSettings {
                 card_goals: CardGoals::default(),
                 profile: ExecProfile::Simulation,
                 pose_estimate: PoseEstimate::Tracker,
+                regrasp_guard: RegraspGuard::Off,
             },
             SceneKind::Card => Self {
                 csvto: CsvtoSettings {
@@ -195,6 +201,7 @@ impl ExecSettings {
                 card_goals: CardGoals::default(),
                 profile: ExecProfile::Simulation,
                 pose_estimate: PoseEstimate::Tracker,
+                regrasp_guard: RegraspGuard::Off,
             },
         }
     }

@@ -147,6 +147,7 @@ pub fn run_policy_episode<H: Hand + ?Sized>(
                 state: after,
                 tip_sdf: Vec::new(),
                 valid: ok,
+                guarded: Vec::new(),
                 contacts: hand.contact_readings().unwrap_or_default(),
             });
         }
