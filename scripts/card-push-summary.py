@@ -2,7 +2,10 @@
 """How far the card's pushes move it, per run (docs/mujoco.md, "Friction that sticks"):
 for every card episode of `dips eval` runs, the card's y change per executed mode (two-finger
 `both` pushes, one-finger `index`/`middle` pushes), pushes that moved it back by more than
-2 mm, steps where a fingertip pressed the table with more than 1 N, and the final distances.
+2 mm, steps where a fingertip pressed the table with more than 1 N, the final distances, the
+modes where a regrasping finger came within 2 mm of the card before its last step (early
+touch-downs) and the steps the regrasp guard changed (`--regrasp-guard`); for every run after
+the first, the paired difference of final distances to the first on the seeds both ran.
 
 Usage: scripts/card-push-summary.py OUT.json NAME=RUN_DIR...
 """
@@ -12,13 +15,20 @@ import os
 import statistics as st
 import sys
 
+from paired import se
+
+# The regrasping fingers of each card mode (task order: index, middle).
+REGRASPING = {"index": [1], "middle": [0], "regrasp": [0, 1], "both": []}
+
 
 def summary(run):
     both, single, back, table_steps, steps, finals, valid = [], [], 0, 0, 0, [], 0
+    early, guarded, by_seed = 0, 0, {}
     files = sorted(glob.glob(os.path.join(run, "episodes", "*", "seed-*", "result.json")))
     for f in files:
         r = json.load(open(f))
         finals.append(100 * r["final_distance_m"])
+        by_seed[r["seed"]] = 100 * r["final_distance_m"]
         valid += bool(r["valid"])
         for m in r["mode_runs"]:
             dy = 100 * (m["end_state"][-2] - m["start_state"][-2])
@@ -28,6 +38,9 @@ def summary(run):
                 single.append(dy)
             if m["mode"] != "regrasp" and dy > 0.2:
                 back += 1
+            fingers = REGRASPING[m["mode"]]
+            early += any(s["tip_sdf"][i] < 0.002 for s in m["steps"][:-1] for i in fingers)
+            guarded += sum(1 for s in m["steps"] if s.get("guarded"))
             for s in m["steps"]:
                 steps += 1
                 for c in s.get("contacts") or []:
@@ -46,6 +59,9 @@ def summary(run):
         "pushes_moving_back_over_2mm": back,
         "steps_pressing_the_table_over_1N": table_steps,
         "steps": steps,
+        "early_touch_downs": early,
+        "guarded_steps": guarded,
+        "by_seed": by_seed,
     }
 
 
@@ -57,6 +73,12 @@ def main():
     for a in sys.argv[2:]:
         name, d = a.split("=", 1)
         runs[name] = summary(d)
+    first = next(iter(runs.values()))
+    for s in list(runs.values())[1:]:
+        seeds = sorted(set(first["by_seed"]) & set(s["by_seed"]))
+        d = [s["by_seed"][k] - first["by_seed"][k] for k in seeds]
+        if len(d) > 1:
+            s["paired_minus_first_cm"] = {"seeds": len(d), "mean": st.mean(d), "se": se(d)}
     with open(out + ".tmp", "w") as f:
         json.dump(runs, f, indent=1)
         f.write("\n")
@@ -66,7 +88,10 @@ def main():
               f"({s['final_distance_cm']['within_1cm']}/{s['episodes']} within 1 cm, {s['valid']} valid); "
               f"both {s['both_push_dy_cm']['mean']:.2f} cm ({s['both_push_dy_cm']['n']}); "
               f"single {s['single_push_dy_cm']['mean']:.2f} cm ({s['single_push_dy_cm']['n']}); "
-              f"back {s['pushes_moving_back_over_2mm']}; table {s['steps_pressing_the_table_over_1N']}/{s['steps']}")
+              f"back {s['pushes_moving_back_over_2mm']}; table {s['steps_pressing_the_table_over_1N']}/{s['steps']}; "
+              f"early touch-downs {s['early_touch_downs']}; guarded steps {s['guarded_steps']}"
+              + (f"; paired − first {s['paired_minus_first_cm']['mean']:+.2f} ± "
+                 f"{s['paired_minus_first_cm']['se']:.2f} cm" if "paired_minus_first_cm" in s else ""))
 
 
 main()

@@ -18,7 +18,14 @@ The same table for a later transfer run with other settings and seeds (the paper
 CSVTO settings, screwdriver only: docs/results/screwdriver/hardware-10600-<arm>/):
 `--run hardware-10600 --seeds 10600-10609`; the tasks without such a run are skipped.
 
+A run whose arms are named otherwise (the pose estimates of 10800-10809:
+docs/results/screwdriver/pose-10800-{world,mujoco-noisy-contacts,mujoco-noisy-tracker}/) gives
+them with `--arms world,mujoco-noisy-contacts,mujoco-noisy-tracker` (`world` is our world's;
+every other arm's turn is put beside it), and `--pair A:B` adds the paired differences B − A
+per method (positive: B worse).
+
 Usage: scripts/transfer-table.py [RESULTS_DIR] [OUT_JSON] [--run NAME] [--seeds FIRST-LAST]
+       [--arms ARM,...] [--pair A:B]
 """
 import json
 import math
@@ -30,19 +37,26 @@ from paired import se, trials as read_trials
 
 args = sys.argv[1:]
 run_name, seeds = "transfer-10100", "10100-10109"
-for flag in ("--run", "--seeds"):
+ARMS = ["world", "mujoco", "mujoco-noisy"]
+PAIR = ("mujoco", "mujoco-noisy")
+for flag in ("--run", "--seeds", "--arms", "--pair"):
     if flag in args:
         i = args.index(flag)
         value = args[i + 1]
         del args[i : i + 2]
         if flag == "--run":
             run_name = value
-        else:
+        elif flag == "--seeds":
             seeds = value
+        elif flag == "--arms":
+            ARMS = value.split(",")
+        else:
+            PAIR = tuple(value.split(":"))
+            if len(PAIR) != 2:
+                sys.exit(f"error: --pair takes A:B (two arm names), not {value}")
 root = Path(args[0] if len(args) > 0 else "docs/results")
 dest = Path(args[1] if len(args) > 1 else root / f"{run_name}.json")
 TASKS = ["screwdriver", "card"]
-ARMS = ["world", "mujoco", "mujoco-noisy"]
 METHODS = ["dips", "dips-sampled", "csvto-sampled", "dips-k1", "dips-max-likelihood"]
 PAPER = {
     "screwdriver": "hardware (paper §V-D, 4 modes, 10 trials): DIPS 10/10 valid, "
@@ -101,12 +115,13 @@ for task in TASKS:
         arms[arm] = {"status": status, "methods": rows, "dips_minus": paired}
     if not arms:
         continue
-    # Tracker noise's cost per method (noisy − clean, same seeds; positive: worse).
+    # Tracker noise's cost per method (noisy − clean, same seeds; positive: worse), or the
+    # difference between the two arms --pair names.
     noise = {}
-    if "mujoco" in arms and "mujoco-noisy" in arms:
+    if PAIR[0] in arms and PAIR[1] in arms:
         for m in METHODS:
-            a = arms["mujoco"]["methods"].get(m, {}).get("by_seed", {})
-            b = arms["mujoco-noisy"]["methods"].get(m, {}).get("by_seed", {})
+            a = arms[PAIR[0]]["methods"].get(m, {}).get("by_seed", {})
+            b = arms[PAIR[1]]["methods"].get(m, {}).get("by_seed", {})
             seeds = sorted(set(a) & set(b))
             if len(seeds) > 1:
                 d = [b[s] - a[s] for s in seeds]
@@ -122,9 +137,7 @@ for task in TASKS:
                 lead = 1.0 - d["mean_valid"] / s["mean_valid"]  # ends closer to the goal
             paper_figures[f"dips_lead_over_dips_sampled_{arm}"] = lead
     if task == "screwdriver" and "world" in arms:
-        for arm in ["mujoco", "mujoco-noisy"]:
-            if arm not in arms:
-                continue
+        for arm in [a for a in arms if a != "world"]:
             for m in METHODS:
                 w = arms["world"]["methods"].get(m, {}).get("by_seed", {})
                 j = arms[arm]["methods"].get(m, {}).get("by_seed", {})
@@ -139,7 +152,7 @@ for task in TASKS:
                 if both:
                     paper_figures[f"{m}_{arm}_share_of_world_turn_valid"] = (
                         sum(j[s] for s in both) / sum(w[s] for s in both))
-    summary["tasks"][task] = {"unit": unit, "arms": arms, "noise_cost": noise,
+    summary["tasks"][task] = {"unit": unit, "arms": arms, "pair": list(PAIR), "noise_cost": noise,
                               "paper_figures": paper_figures}
 
     print(f"\n### {task} ({unit}; lower is better)\n")
@@ -160,7 +173,7 @@ for task in TASKS:
             f"{m} {fmt(p['mean'], nd)} ± {fmt(p['se'], nd)} ({p['dips_better']}/{p['seeds']})"
             for m, p in a["dips_minus"].items()))
     if noise:
-        print("tracker noise's cost (noisy − clean MuJoCo): " + "; ".join(
+        print(f"paired {PAIR[1]} − {PAIR[0]}: " + "; ".join(
             f"{m} {fmt(p['mean'], nd)} ± {fmt(p['se'], nd)}" for m, p in noise.items()))
     for k, v in paper_figures.items():
         print(f"- {k}: {v * 100:.1f} %")
