@@ -141,6 +141,12 @@ fn flags_say_what_is_allowed() {
         err.contains("lab") && err.contains("simulation") && err.contains("hardware"),
         "{err}"
     );
+    let (code, err) = with(&["--regrasp-guard", "always"]);
+    assert_eq!(code, Some(2), "{err}");
+    assert!(
+        err.contains("always") && err.contains("off") && err.contains("clearance"),
+        "{err}"
+    );
     // The paper's hardware settings exist for the screwdriver only.
     let (code, err) = with(&["--exec-profile", "hardware"]);
     assert_ne!(code, Some(0), "{err}");

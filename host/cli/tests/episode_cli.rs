@@ -493,3 +493,54 @@ fn a_firmware_that_dies_mid_episode_is_an_error_naming_the_last_request() {
     );
     assert!(t0.elapsed() < std::time::Duration::from_secs(120));
 }
+
+/// The regrasp guard, as a user starts it: a card `middle` mode (the middle finger pushes, the
+/// index regrasps) from the start, where both fingers rest on the card. `result.json` records
+/// the guard; the index stays clear of the card until its touch-down step; every step the
+/// guard changed names what it did per finger. (What the guard does to a command is the
+/// unit tests' in `dips_exec::regrasp_guard`: here the plan keeps its clearance and the guard
+/// need not act.)
+#[test]
+fn the_regrasp_guard_is_recorded_and_the_regrasping_finger_stays_clear() {
+    let out = temp_dir("guard");
+    let run = dips()
+        .args([
+            "episode",
+            "--task",
+            "card",
+            "--method",
+            "csvto-sampled",
+            "--modes",
+            "middle",
+            "--regrasp-guard",
+            "clearance",
+            "--out",
+        ])
+        .arg(&out)
+        .output()
+        .expect("run dips");
+    let err = String::from_utf8_lossy(&run.stderr);
+    assert!(run.status.success(), "{err}");
+    let result: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(out.join("result.json")).unwrap()).unwrap();
+    assert_eq!(result["regrasp_guard"], "clearance");
+    let steps = result["mode_runs"][0]["steps"].as_array().unwrap();
+    for s in &steps[..steps.len() - 1] {
+        let index_sdf = s["tip_sdf"][0].as_f64().unwrap();
+        assert!(index_sdf > 2e-3, "the index touched the card early: {s:?}");
+    }
+    for s in steps.iter().filter_map(|s| s.get("guarded")) {
+        let actions = s.as_array().unwrap();
+        assert_eq!(actions.len(), 2);
+        assert!(
+            actions[1].is_null(),
+            "the pushing middle finger is never guarded"
+        );
+        assert!(["lifted", "shortened"].contains(&actions[0].as_str().unwrap()));
+    }
+    assert!(
+        steps.last().unwrap().get("guarded").is_none(),
+        "the last step is free"
+    );
+    let _ = std::fs::remove_dir_all(&out);
+}
