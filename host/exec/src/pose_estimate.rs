@@ -36,8 +36,6 @@ pub const CONTACT_GATE_M: f64 = 6e-3;
 pub const TOUCH_FORCE_N: f64 = 0.05;
 /// Gauss–Newton iterations at most; the fusion is three-dimensional and converges in 2–4.
 const MAX_ITERS: usize = 10;
-/// Central-difference step of the numeric Jacobian (object units: m or rad).
-const FD_STEP: f64 = 1e-6;
 
 /// How the controller estimates the object's pose at each of a mode's solves.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
@@ -141,8 +139,8 @@ fn tracker_sigma(task: SceneKind) -> [f64; 3] {
 /// `Σ_k ((o_k − m_k)/σ_k)² + Σ_i (sdf_i(q, o)/σ_c)²` over the contact fingers `i` of
 /// `problem`'s mode that touch (`touching[i]`, from the hand's contact readings; every one
 /// when `None`) and lie within [`CONTACT_GATE_M`] of the surface at the measured `m`
-/// (σ: [`TRACKER_SIGMA_RAD`], [`TRACKER_SIGMA_M`], [`CONTACT_SIGMA_M`]). Gauss–Newton with a
-/// numeric Jacobian; a step that does not lower the cost is halved, and a non-finite one
+/// (σ: [`TRACKER_SIGMA_RAD`], [`TRACKER_SIGMA_M`], [`CONTACT_SIGMA_M`]). Gauss–Newton with the
+/// problem's exact sdf derivatives ([`AllegroProblem::finger_sdf_gradient`]); a step that does not lower the cost is halved, and a non-finite one
 /// leaves the measurement as it is. With no contact finger in reach the state is returned
 /// unchanged.
 pub fn fuse_contacts(
@@ -178,27 +176,17 @@ pub fn fuse_contacts(
     let mut o = m;
     let mut r = residuals(&o);
     for _ in 0..MAX_ITERS {
-        // J (rows: residuals, columns: the three coordinates) by central differences.
-        let cols: Vec<Vec<f64>> = (0..3)
-            .map(|k| {
-                let (mut hi, mut lo) = (o, o);
-                hi[k] += FD_STEP;
-                lo[k] -= FD_STEP;
-                let (rh, rl) = (residuals(&hi), residuals(&lo));
-                rh.iter()
-                    .zip(&rl)
-                    .map(|(a, b)| (a - b) / (2.0 * FD_STEP))
-                    .collect()
-            })
+        // J's rows, in `residuals`' order: the prior's (1/σ_k on the diagonal), then each
+        // contact's sdf gradient over the object coordinates.
+        let rows: Vec<[f64; 3]> = (0..3)
+            .map(|k| std::array::from_fn(|c| if c == k { 1.0 / sigma[k] } else { 0.0 }))
+            .chain(used.iter().map(|(i, q)| {
+                let (_, _, d_o) = problem.finger_sdf_gradient(*i, q, &o);
+                d_o.map(|v| v / CONTACT_SIGMA_M)
+            }))
             .collect();
-        let jtj = Matrix3::from_fn(|a, b| {
-            cols[a]
-                .iter()
-                .zip(&cols[b])
-                .map(|(x, y)| x * y)
-                .sum::<f64>()
-        });
-        let jtr = Vector3::from_fn(|a, _| cols[a].iter().zip(&r).map(|(x, y)| x * y).sum::<f64>());
+        let jtj = Matrix3::from_fn(|a, b| rows.iter().map(|j| j[a] * j[b]).sum::<f64>());
+        let jtr = Vector3::from_fn(|a, _| rows.iter().zip(&r).map(|(j, v)| j[a] * v).sum::<f64>());
         // The prior rows make JᵀJ positive definite (at least 1/σ² on the diagonal).
         let Some(step) = jtj.cholesky().map(|c| -c.solve(&jtr)) else {
             break;

@@ -33,8 +33,6 @@ use crate::problems::allegro::REGRASP_CLEARANCE;
 pub const GUARD_FLOOR: f64 = 0.5 * REGRASP_CLEARANCE;
 /// Bisection steps when shortening a command (the remaining error is `2⁻²⁰` of it).
 const BISECTIONS: usize = 20;
-/// Central-difference step of the signed distance's joint gradient (rad).
-const FD_STEP: f64 = 1e-6;
 
 /// Whether the controller guards regrasping fingers' commands ([`guard_regrasps`]).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
@@ -158,12 +156,7 @@ fn lift(
     now: f64,
     bound: f64,
 ) -> [f64; 4] {
-    let g: [f64; 4] = std::array::from_fn(|k| {
-        let (mut a, mut b) = (*q, *q);
-        a[k] += FD_STEP;
-        b[k] -= FD_STEP;
-        (problem.finger_sdf(i, &a, o) - problem.finger_sdf(i, &b, o)) / (2.0 * FD_STEP)
-    });
+    let (_, g, _) = problem.finger_sdf_gradient(i, q, o);
     let norm2: f64 = g.iter().map(|v| v * v).sum();
     if norm2 < 1e-12 {
         // No joint moves the tip away (a singular pose): hold the finger where it is.

@@ -329,3 +329,47 @@ fn every_counted_row_is_written() {
         }
     }
 }
+
+#[test]
+fn finger_sdf_gradient_matches_central_differences_in_world_units() {
+    let hand = HandModel::allegro_v4();
+    // The card's heading is scaled inside the problem (`CARD_THETA_UNIT`): the object
+    // derivative must come back per radian.
+    let cases: [(Mode, [f64; 3]); 3] = [
+        (Mode::Turn, [0.04, -0.03, 0.7]),
+        (Mode::CardBoth, [0.01, -0.02, 0.25]),
+        (Mode::CardRegrasp, [-0.03, -0.05, -0.6]),
+    ];
+    let h = 1e-6;
+    for (mode, o) in cases {
+        let p = AllegroProblem::new(&hand, &spec(mode, 2)).expect("valid spec");
+        let start = start_state(SceneKind::from(mode.task()));
+        for i in 0..p.fingers() {
+            let q: [f64; 4] = std::array::from_fn(|k| start[4 * i + k] + 0.05);
+            let (v, dq, d_o) = p.finger_sdf_gradient(i, &q, &o);
+            assert_eq!(v, p.finger_sdf(i, &q, &o));
+            for k in 0..4 {
+                let (mut a, mut b) = (q, q);
+                a[k] += h;
+                b[k] -= h;
+                let fd = (p.finger_sdf(i, &a, &o) - p.finger_sdf(i, &b, &o)) / (2.0 * h);
+                assert!(
+                    (fd - dq[k]).abs() < 1e-6,
+                    "{mode:?} finger {i} q{k}: {fd} vs {}",
+                    dq[k]
+                );
+            }
+            for k in 0..3 {
+                let (mut a, mut b) = (o, o);
+                a[k] += h;
+                b[k] -= h;
+                let fd = (p.finger_sdf(i, &q, &a) - p.finger_sdf(i, &q, &b)) / (2.0 * h);
+                assert!(
+                    (fd - d_o[k]).abs() < 1e-6,
+                    "{mode:?} finger {i} o{k}: {fd} vs {}",
+                    d_o[k]
+                );
+            }
+        }
+    }
+}

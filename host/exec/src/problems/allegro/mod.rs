@@ -448,6 +448,20 @@ impl AllegroProblem {
         self.contact(i, q, &self.obj_units(o)).sdf
     }
 
+    /// [`Self::finger_sdf`] with its exact derivatives: `(sdf, ∂sdf/∂q, ∂sdf/∂o)`, the object's
+    /// per metre or radian (`o` in metres and radians).
+    pub fn finger_sdf_gradient(
+        &self,
+        i: usize,
+        q: &[f64; 4],
+        o: &[f64; 3],
+    ) -> (f64, [f64; 4], [f64; 3]) {
+        let (sdf, _) = self.regrasp_sdf(i, q, &self.obj_units(o), 0, 4);
+        let dq = std::array::from_fn(|k| sdf.d[k]);
+        let d_o = std::array::from_fn(|k| sdf.d[4 + k] / self.units[k]);
+        (sdf.v, dq, d_o)
+    }
+
     fn obj_units(&self, o: &[f64; 3]) -> [f64; 3] {
         std::array::from_fn(|k| o[k] / self.units[k])
     }
