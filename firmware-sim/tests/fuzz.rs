@@ -31,6 +31,7 @@ fn corpus() -> Vec<ToKernel> {
             settings: SearchSettings::default(),
             previous_mode: Some(1),
             card_goals: Default::default(),
+            first_modes: 0b111,
         }),
         ToKernel::SetPrior(PriorTable {
             task: Task::Card,

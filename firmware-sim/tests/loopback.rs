@@ -74,6 +74,7 @@ fn plan_request() -> ToKernel {
         settings: SearchSettings::default(),
         previous_mode: None,
         card_goals: Default::default(),
+        first_modes: 0b1111,
     })
 }
 

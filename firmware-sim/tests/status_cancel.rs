@@ -85,6 +85,7 @@ fn endless_request() -> ToKernel {
         },
         previous_mode: None,
         card_goals: Default::default(),
+        first_modes: 0b111,
     })
 }
 

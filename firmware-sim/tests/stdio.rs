@@ -164,6 +164,7 @@ fn binary_serves_tcp_connections_one_after_another() {
         settings: SearchSettings::default(),
         previous_mode: None,
         card_goals: Default::default(),
+        first_modes: 0b1111,
     });
     let replies = exchange(vec![
         (1, plan.clone()),
@@ -218,6 +219,7 @@ fn binary_plans_with_models_uploaded_over_stdio() {
         },
         previous_mode: Some(0),
         card_goals: Default::default(),
+        first_modes: 0b111,
     }));
     let mut input = Vec::new();
     for (i, body) in requests.into_iter().enumerate() {

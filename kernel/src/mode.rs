@@ -97,6 +97,49 @@ impl ModeId {
     }
 }
 
+/// A set of a task's modes, one bit per [`ModeId`] (bit `i` = mode `i`): which modes the
+/// search may execute first ([`crate::search::Problem::first_modes`]). The empty set and bits
+/// beyond a task's table are representable; [`ModeSet::valid_for`] says whether a set names at
+/// least one of a task's modes and nothing else.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub struct ModeSet(pub u8);
+
+const _: () = assert!(MAX_MODES <= 8, "ModeSet holds one bit per mode in a u8");
+
+impl ModeSet {
+    /// No mode.
+    pub const EMPTY: Self = Self(0);
+
+    /// Every mode of `task`.
+    pub const fn all(task: Task) -> Self {
+        Self(((1u16 << task.mode_count()) - 1) as u8)
+    }
+
+    /// Whether `id` is in the set.
+    pub const fn contains(self, id: ModeId) -> bool {
+        id.index() < 8 && self.0 & (1 << id.0) != 0
+    }
+
+    /// The set with `id` added (ids beyond the bits are ignored).
+    pub const fn with(self, id: ModeId) -> Self {
+        if id.index() < 8 {
+            Self(self.0 | (1 << id.0))
+        } else {
+            self
+        }
+    }
+
+    /// Whether the set holds no mode.
+    pub const fn is_empty(self) -> bool {
+        self.0 == 0
+    }
+
+    /// Whether the set names at least one of `task`'s modes and no mode beyond its table.
+    pub const fn valid_for(self, task: Task) -> bool {
+        !self.is_empty() && self.0 & !Self::all(task).0 == 0
+    }
+}
+
 /// A named mode of a task.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct ModeSpec {

@@ -25,7 +25,7 @@ use crate::adapters::{
 use crate::budget::Clock;
 use crate::diffusion::SamplerConfig;
 use crate::engine::{DenoiserEngine, DiscriminatorEngine, ModelDims};
-use crate::mode::{MAX_STATE_DIM, ModeId, Task};
+use crate::mode::{MAX_STATE_DIM, ModeId, ModeSet, Task};
 use crate::prior::MarkovPrior;
 use crate::search::config::ConfigError;
 use crate::search::{Planner, Problem, SearchConfig, SearchReport, SegmentSampler, SegmentScorer};
@@ -48,6 +48,9 @@ pub struct PlanSpec {
     pub objective: Objective,
     /// The mode executed just before (replanning), `None` on a trial's first call.
     pub executed: Option<ModeId>,
+    /// The modes the plan may begin with ([`Problem::first_modes`]); every mode of the task
+    /// by default.
+    pub first_modes: ModeSet,
 }
 
 /// The [`PlanSpec`] field that is not acceptable.
@@ -63,6 +66,8 @@ pub enum SpecError {
     Prior,
     /// The executed mode is not one of the task's.
     PreviousMode,
+    /// The first modes name none of the task's modes, or a mode beyond its table.
+    FirstModes,
 }
 
 impl fmt::Display for SpecError {
@@ -75,6 +80,9 @@ impl fmt::Display for SpecError {
             Self::Settings(e) => write!(f, "{e}"),
             Self::Prior => f.write_str("prior: not over the task's modes, or p_min too large"),
             Self::PreviousMode => f.write_str("previous mode: not a mode of the task"),
+            Self::FirstModes => {
+                f.write_str("first modes: none of the task's modes, or one beyond its table")
+            }
         }
     }
 }
@@ -112,6 +120,7 @@ impl PlanSpec {
             start: heapless::Vec::from_slice(start).map_err(|_| SpecError::StartState)?,
             objective,
             executed: None,
+            first_modes: ModeSet::all(task),
         };
         spec.check()?;
         Ok(spec)
@@ -205,6 +214,9 @@ impl PlanSpec {
         {
             return Err(SpecError::PreviousMode);
         }
+        if !self.first_modes.valid_for(self.task) {
+            return Err(SpecError::FirstModes);
+        }
         Ok(())
     }
 
@@ -221,6 +233,7 @@ impl PlanSpec {
             start: &self.start,
             executed: self.executed,
             prior: &self.prior,
+            first_modes: self.first_modes,
         }
     }
 }

@@ -20,7 +20,7 @@ use dips_wire::{
 
 use crate::budget::Clock;
 use crate::diffusion::{SamplerConfig, SamplingMethod};
-use crate::mode::{MAX_STATE_DIM, ModeId, SegmentDims, Task};
+use crate::mode::{MAX_STATE_DIM, ModeId, ModeSet, SegmentDims, Task};
 use crate::prior::MarkovPrior;
 use crate::search::config::ConfigError;
 use crate::search::{
@@ -333,12 +333,15 @@ pub struct PlanInputs {
     pub executed: Option<ModeId>,
     /// The task's objective for the request's goal ([`Objective::for_goal`]).
     pub objective: Objective,
+    /// The modes the plan may begin with.
+    pub first_modes: ModeSet,
 }
 
 impl PlanInputs {
     /// Check a request: the start state has the task's state columns and is finite, the goal
-    /// is finite, the settings are valid, the previous mode is one of the task's. The first
-    /// bad field is named.
+    /// is finite, the settings are valid, the previous mode is one of the task's, the first
+    /// modes name at least one of the task's modes and none beyond. The first bad field is
+    /// named.
     pub fn from_request(request: &PlanRequest) -> Result<Self, RequestField> {
         let task = Task::from(request.task);
         let dims = task.dims();
@@ -354,6 +357,10 @@ impl PlanInputs {
             None => None,
             Some(i) => Some(mode_from_wire(task, i).ok_or(RequestField::PreviousMode)?),
         };
+        let first_modes = ModeSet(request.first_modes);
+        if !first_modes.valid_for(task) {
+            return Err(RequestField::FirstModes);
+        }
         Ok(Self {
             task,
             dims,
@@ -361,6 +368,7 @@ impl PlanInputs {
             start,
             executed,
             objective,
+            first_modes,
         })
     }
 
@@ -372,6 +380,7 @@ impl PlanInputs {
             start: &self.start,
             executed: self.executed,
             prior,
+            first_modes: self.first_modes,
         }
     }
 }
@@ -388,6 +397,7 @@ impl PlanInputs {
             start: self.start,
             objective: self.objective,
             executed: self.executed,
+            first_modes: self.first_modes,
         }
     }
 }
@@ -400,6 +410,7 @@ impl From<SpecError> for RequestField {
             SpecError::Settings(_) => RequestField::Settings,
             SpecError::Prior => RequestField::Prior,
             SpecError::PreviousMode => RequestField::PreviousMode,
+            SpecError::FirstModes => RequestField::FirstModes,
         }
     }
 }
@@ -416,6 +427,7 @@ impl PlanSpec {
             settings: self.search.into(),
             previous_mode: self.executed.map(mode_to_wire),
             card_goals: self.card_goals().into(),
+            first_modes: self.first_modes.0,
         }
     }
 }

@@ -17,7 +17,7 @@ mod common;
 
 use common::{LineObjective, StepSampler, StepScorer, step_dims};
 use dips_kernel::budget::NoClock;
-use dips_kernel::mode::{ModeId, Task};
+use dips_kernel::mode::{ModeId, ModeSet, Task};
 use dips_kernel::prior::MarkovPrior;
 use dips_kernel::rng::KernelRng;
 use dips_kernel::search::particles::resample;
@@ -68,6 +68,22 @@ fn run(
     prior: &MarkovPrior,
     executed: Option<ModeId>,
 ) -> SearchReport {
+    run_from(
+        config,
+        goal,
+        prior,
+        executed,
+        ModeSet::all(Task::Screwdriver),
+    )
+}
+
+fn run_from(
+    config: &SearchConfig,
+    goal: f32,
+    prior: &MarkovPrior,
+    executed: Option<ModeId>,
+    first_modes: ModeSet,
+) -> SearchReport {
     let task = Task::Screwdriver;
     let k = usize::from(config.k);
     let mut planner = common::boxed_planner::<2, 64, 64, 6>();
@@ -84,6 +100,7 @@ fn run(
         start: &[0.0, 0.0],
         executed,
         prior,
+        first_modes,
     };
     let objective = LineObjective { goal, slope: 1.0 };
     planner.plan(
@@ -273,4 +290,51 @@ fn particle_diagnostics_count_the_whole_tree() {
     // k = 2 draws keep one or two distinct samples per child.
     assert!((12..=24).contains(&d.distinct_sum), "{}", d.distinct_sum);
     assert!(d.ess_scores_min >= 1.0 - 1e-6 && d.ess_scores_sum <= 24.0 + 1e-4);
+}
+
+#[test]
+fn the_root_expands_only_into_the_first_modes() {
+    // Without `turn` first, the best depth-3 end is one step up and two down: x = −1, via
+    // (index-regrasp | thumb-middle-regrasp, turn, turn). `turn` is still allowed after the
+    // root.
+    let first = ModeSet::EMPTY.with(ModeId(1)).with(ModeId(2));
+    let deep = |seed| SearchConfig {
+        max_depth: 3,
+        ..config(seed)
+    };
+    for seed in 0..50 {
+        let r = run_from(&deep(seed), -100.0, &uniform(), None, first);
+        assert_eq!(
+            r.status,
+            SearchStatus::Approximate(ApproximateReason::Exhausted)
+        );
+        assert_eq!(r.modes.len(), 3, "{r:?}");
+        assert!(first.contains(r.modes[0]), "{:?}", r.modes);
+        assert_eq!(&r.modes[1..], &[ModeId(0), ModeId(0)]);
+        assert_eq!(r.expected_progress, -1.0);
+        // Root + 2 depth-1 + 6 depth-2 nodes expanded: 1 + 2 + 6 + 18 nodes.
+        assert_eq!(r.stats.nodes_expanded, 9);
+        assert_eq!(r.stats.nodes_generated, 27);
+        // Every mode is the protocol-2 search, bit for bit.
+        let all = ModeSet::all(Task::Screwdriver);
+        assert_eq!(
+            run_from(&deep(seed), -100.0, &uniform(), None, all),
+            run(&deep(seed), -100.0, &uniform(), None)
+        );
+        assert_eq!(
+            run(&deep(seed), -100.0, &uniform(), None).modes[0],
+            ModeId(0)
+        );
+    }
+    // When replanning, the executed mode does not count: the set is of the plan's first mode.
+    let r = run_from(&deep(3), -100.0, &uniform(), Some(ModeId(0)), first);
+    assert!(!r.modes.is_empty() && first.contains(r.modes[0]), "{r:?}");
+}
+
+#[test]
+fn first_modes_outside_the_task_are_an_invalid_problem() {
+    for bad in [ModeSet::EMPTY, ModeSet(0b1000), ModeSet(0b1001)] {
+        let r = run_from(&config(1), -100.0, &uniform(), None, bad);
+        assert_eq!(r.status, SearchStatus::InvalidProblem, "{bad:?}");
+    }
 }

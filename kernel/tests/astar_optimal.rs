@@ -114,6 +114,7 @@ fn astar_matches_brute_force_on_random_problems() {
             start: &[0.0, 0.0],
             executed: None,
             prior: &prior,
+            first_modes: dips_kernel::mode::ModeSet::all(task),
         };
         let config = SearchConfig {
             k,

@@ -31,6 +31,7 @@ fn plan_with<const K: usize, const N: usize, const O: usize, const S: usize>(
         start,
         executed: None,
         prior: &prior,
+        first_modes: dips_kernel::mode::ModeSet::all(Task::Screwdriver),
     };
     let objective = ScrewdriverObjective {
         reference_yaw: 0.0,
@@ -206,6 +207,7 @@ fn setup_capacity_and_bad_input_are_statuses() {
             start: &start,
             executed,
             prior,
+            first_modes: dips_kernel::mode::ModeSet::all(Task::Screwdriver),
         };
         let r = p.plan(
             &ok,

@@ -557,6 +557,7 @@ fn an_engine_failure_stops_the_search_with_a_status() {
             start: &start,
             executed: None,
             prior: &prior,
+            first_modes: dips_kernel::mode::ModeSet::all(Task::Screwdriver),
         },
         &mut sampler,
         &mut scorer,

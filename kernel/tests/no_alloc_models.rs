@@ -52,6 +52,7 @@ fn planning_through_the_model_adapters_does_not_allocate() {
         },
         previous_mode: Some(1),
         card_goals: Default::default(),
+        first_modes: 0b111,
     };
 
     // Building the adapters only splits the caller's buffers.

@@ -192,6 +192,7 @@ fn request(task: dips_wire::Task, start: &[f32], goal: f32) -> PlanRequest {
         settings: SearchSettings::default(),
         previous_mode: None,
         card_goals: Default::default(),
+        first_modes: dips_kernel::mode::ModeSet::all(dips_kernel::mode::Task::from(task)).0,
     }
 }
 
@@ -411,6 +412,38 @@ fn a_framed_request_is_planned_and_its_reply_matches_the_report() {
             field: RequestField::PreviousMode
         })
     );
+    // First modes that name none of the screwdriver's three modes, or a fourth.
+    for first_modes in [0, 0b1000, 0b1010] {
+        let mut bad = req.clone();
+        bad.first_modes = first_modes;
+        assert_eq!(
+            plan_request(
+                &mut planner,
+                &bad,
+                &prior,
+                &mut sampler,
+                &mut scorer,
+                &mut NoClock
+            ),
+            Err(WireError::InvalidRequest {
+                field: RequestField::FirstModes
+            }),
+            "{first_modes:#b}"
+        );
+    }
+    // The set travels: a request without `turn` first plans a regrasp first.
+    let mut no_turn = req.clone();
+    no_turn.first_modes = 0b110;
+    let reply = plan_request(
+        &mut planner,
+        &no_turn,
+        &prior,
+        &mut sampler,
+        &mut scorer,
+        &mut NoClock,
+    )
+    .unwrap();
+    assert!(matches!(reply.modes.first(), Some(1 | 2)), "{reply:?}");
     // Search-level failures are statuses: a prior of the wrong size.
     let card_prior = MarkovPrior::uniform(4).unwrap();
     let reply = plan_request(

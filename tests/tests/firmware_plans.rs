@@ -71,6 +71,7 @@ fn request(seed: u64) -> PlanRequest {
         },
         previous_mode: None,
         card_goals: Default::default(),
+        first_modes: 0b111,
     }
 }
 

@@ -176,6 +176,7 @@ fn a_wire_request_is_planned_with_the_kernel_engine() {
         settings: SearchSettings::from(config()),
         previous_mode: Some(1),
         card_goals: Default::default(),
+        first_modes: 0b111,
     };
     for v in start(task) {
         request.start_state.push(v).unwrap();

@@ -326,6 +326,7 @@ fn request() -> PlanRequest {
         }),
         previous_mode: None,
         card_goals: Default::default(),
+        first_modes: 0b1111,
     };
     // Index and middle joints, the card at the origin with θ = 0.
     for v in [

@@ -98,6 +98,7 @@ fn setup(args: &FirmwareBenchArgs, task: Task) -> anyhow::Result<Setup> {
             settings: config.into(),
             previous_mode: None,
             card_goals: Default::default(),
+            first_modes: dips_kernel::mode::ModeSet::all(task).0,
         },
         sampler: ToKernel::SetSampler(sampler),
     })

@@ -290,6 +290,7 @@ pub fn run(args: EvalArgs, hands: &dyn Hands) -> anyhow::Result<()> {
             max_modes: args.max_modes,
             search_depth: args.online.search_depth,
             stop_rule: args.online.stop_rule,
+            first_mode: args.online.first_mode,
             planner_size: args.online.planner_size,
         },
         models: models_dir(args.models.as_deref(), task.task())?,

@@ -15,6 +15,7 @@ use dips_kernel::mode::Task;
 use dips_kernel::search::{CostToCome, SearchOverrides};
 use dips_kernel::task::CardGoals;
 use dips_onnx::EngineKind;
+use dips_planning::first_mode::FirstModeRule;
 use dips_planning::online::{Method, SearchDepth};
 use dips_planning::sized::PlannerSize;
 use dips_planning::stop_rule::StopRule;
@@ -124,6 +125,14 @@ impl Named for StopRule {
     const HELP: &'static [&'static str] = &[
         "Stop when a plan holds no mode (the paper's)",
         "Also stop when the plan's expected end is no nearer the goal than here (ours)",
+    ];
+}
+
+impl Named for FirstModeRule {
+    const NAMES: &'static [&'static str] = &FirstModeRule::NAMES;
+    const HELP: &'static [&'static str] = &[
+        "Any of the task's modes (the paper's)",
+        "Only modes whose contact fingers touch the object, within 4 mm (ours)",
     ];
 }
 
@@ -299,6 +308,11 @@ pub struct OnlineArgs {
     /// goal than here; ours, `docs/online.md`, "Stopping and the planner's size").
     #[arg(long, value_parser = named::<StopRule>(), default_value = "goal-reached")]
     pub stop_rule: StopRule,
+    /// Which modes a plan may begin with: `any` (the paper's) or `touching` (only modes whose
+    /// contact fingers are within 4 mm of the object at the measured state; ours,
+    /// `docs/online.md`, "The first mode").
+    #[arg(long, value_parser = named::<FirstModeRule>(), default_value = "any")]
+    pub first_mode: FirstModeRule,
     /// The in-process planner's capacities: `paper` (the firmware's `PaperPlanner`, 512
     /// nodes, 256 open) or `host` (4 096 nodes, 2 048 open). A `--kernel` over the wire has
     /// its own.

@@ -141,6 +141,12 @@ fn flags_say_what_is_allowed() {
         err.contains("lab") && err.contains("simulation") && err.contains("hardware"),
         "{err}"
     );
+    let (code, err) = with(&["--first-mode", "sometimes"]);
+    assert_eq!(code, Some(2), "{err}");
+    assert!(
+        err.contains("sometimes") && err.contains("any") && err.contains("touching"),
+        "{err}"
+    );
     let (code, err) = with(&["--regrasp-guard", "always"]);
     assert_eq!(code, Some(2), "{err}");
     assert!(

@@ -209,3 +209,37 @@ fn a_protocol_is_written_refused_until_committed_and_registers_its_run() {
     assert!(!repo.join("results/dips").exists());
     let _ = std::fs::remove_dir_all(&repo);
 }
+
+/// `--first-mode touching` is written into the protocol (absent: the paper's `any`), so a
+/// registered run and its resume plan with the same rule.
+#[test]
+fn the_first_mode_rule_is_written_into_the_protocol() {
+    let dir = std::env::temp_dir().join(format!("dips-first-mode-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    let write = |file: &str, extra: &[&str]| {
+        let mut a = vec![
+            "eval",
+            "--write-protocol",
+            file,
+            "--task",
+            "card",
+            "--methods",
+            "dips",
+            "--trials",
+            "2",
+            "--first-seed",
+            "10000",
+        ];
+        a.extend_from_slice(extra);
+        let (code, err) = dips(&dir, &a);
+        assert_eq!(code, Some(0), "{err}");
+        let text = std::fs::read_to_string(dir.join(file)).unwrap();
+        serde_json::from_str::<serde_json::Value>(&text).unwrap()["eval"]["episode"].clone()
+    };
+    let touching = write("touching.json", &["--first-mode", "touching"]);
+    assert_eq!(touching["first_mode"], "touching");
+    let paper = write("paper.json", &[]);
+    assert!(paper.get("first_mode").is_none(), "{paper}");
+    let _ = std::fs::remove_dir_all(&dir);
+}

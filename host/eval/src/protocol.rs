@@ -990,6 +990,7 @@ mod tests {
                 tracker_noise: None,
                 card_goals: Default::default(),
                 stop_rule: Default::default(),
+                first_mode: Default::default(),
                 planner_size: Default::default(),
                 exec_profile: Default::default(),
                 pose_estimate: Default::default(),

@@ -9,6 +9,7 @@ use dips_kernel::search::CostToCome;
 use dips_kernel::task::CardGoals;
 use dips_link::KernelTarget;
 use dips_onnx::EngineKind;
+use dips_planning::first_mode::FirstModeRule;
 use dips_planning::online::{
     Method, OnlineSettings, SearchDepth, TimeBudgetError, check_time_budget_s,
 };
@@ -73,6 +74,10 @@ pub struct EpisodeSettings {
     /// means `goal-reached`.
     #[serde(default, skip_serializing_if = "StopRule::is_paper")]
     pub stop_rule: StopRule,
+    /// Which modes a plan could begin with (`--first-mode`). Written only when it is not the
+    /// paper's: absent means `any`.
+    #[serde(default, skip_serializing_if = "FirstModeRule::is_paper")]
+    pub first_mode: FirstModeRule,
     /// The in-process planner's capacities (`--planner-size`). Written only when they are
     /// not the firmware's: absent means `paper`.
     #[serde(default, skip_serializing_if = "PlannerSize::is_paper")]
@@ -399,6 +404,7 @@ impl EvalSettings {
             tracker_noise: self.tracker_noise,
             card_goals: self.card_goals,
             stop_rule: self.online.stop_rule,
+            first_mode: self.online.first_mode,
             planner_size: self.online.planner_size,
             exec_profile: self.exec_profile,
             pose_estimate: self.pose_estimate,
@@ -538,6 +544,7 @@ mod tests {
             tracker_noise: None,
             card_goals: CardGoals::Capped,
             stop_rule: StopRule::GoalReached,
+            first_mode: FirstModeRule::Any,
             planner_size: PlannerSize::Paper,
             exec_profile: ExecProfile::Simulation,
             pose_estimate: PoseEstimate::Tracker,
@@ -606,23 +613,31 @@ mod tests {
     }
 
     #[test]
-    fn the_stop_rule_and_planner_size_round_trip_and_the_papers_are_the_default() {
+    fn the_stop_rule_first_mode_and_planner_size_round_trip_and_the_papers_are_the_default() {
         let paper = serde_json::to_value(settings()).unwrap();
         assert!(paper.get("stop_rule").is_none() && paper.get("planner_size").is_none());
+        assert!(paper.get("first_mode").is_none());
         let ours = EpisodeSettings {
             stop_rule: StopRule::NoGain,
+            first_mode: FirstModeRule::Touching,
             planner_size: PlannerSize::Host,
             ..settings()
         };
         let v = serde_json::to_value(&ours).unwrap();
         assert_eq!(v["stop_rule"], "no-gain");
+        assert_eq!(v["first_mode"], "touching");
         assert_eq!(v["planner_size"], "host");
         assert_eq!(serde_json::from_value::<EpisodeSettings>(v).unwrap(), ours);
         assert_eq!(
             settings().first_difference(&ours).0,
-            "planner_size",
-            "a resumed run with another planner is refused"
+            "first_mode",
+            "a resumed run with another rule or planner is refused"
         );
+        let host = EpisodeSettings {
+            planner_size: PlannerSize::Host,
+            ..settings()
+        };
+        assert_eq!(settings().first_difference(&host).0, "planner_size");
     }
 
     #[test]

@@ -41,6 +41,7 @@ fn settings(methods: Vec<Method>, trials: usize) -> EvalSettings {
             max_modes: Some(1),
             search_depth: None,
             stop_rule: Default::default(),
+            first_mode: Default::default(),
             planner_size: Default::default(),
         },
         models: default_models_dir(Task::Card).unwrap(),

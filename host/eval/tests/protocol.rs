@@ -62,6 +62,7 @@ fn settings(models: &Path, methods: Vec<Method>, first_seed: u64) -> EvalSetting
             max_modes: Some(1),
             search_depth: None,
             stop_rule: Default::default(),
+            first_mode: Default::default(),
             planner_size: Default::default(),
         },
         models: models.to_path_buf(),

@@ -320,6 +320,10 @@ pub struct PlanRecord {
     /// wire keeps them to itself). `docs/particles.md`.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub particles_diagnostics: Option<ParticleSummary>,
+    /// The modes the plan could begin with, when fewer than the task's
+    /// (`--first-mode touching` with a contact finger off the object). Written only then.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub first_modes: Option<Vec<&'static str>>,
     /// The episode stopped instead of executing this plan: its expected end was no nearer the
     /// goal than the state it started from (`--stop-rule no-gain`). Written only when true.
     #[serde(skip_serializing_if = "std::ops::Not::not")]

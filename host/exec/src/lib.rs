@@ -25,8 +25,8 @@ pub use episode::{
     sample_prior_sequence, sequence_for_seed,
 };
 pub use mode_run::{
-    ExecError, ModeRun, StepLog, StepParticles, hand_state, mode_goal, pose_valid, run_mode,
-    run_mode_observed, true_hand_state,
+    ExecError, ModeRun, StepLog, StepParticles, fingertip_distances, hand_state, mode_goal,
+    pose_valid, run_mode, run_mode_observed, true_hand_state,
 };
 pub use pose_estimate::PoseEstimate;
 pub use regrasp_guard::RegraspGuard;

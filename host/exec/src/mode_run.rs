@@ -183,6 +183,39 @@ pub fn pose_valid(scene: SceneKind, pose: &ObjectPose) -> bool {
     }
 }
 
+/// The signed distance (m) from each of the task's fingertips to the object, in task-finger
+/// order, at the hand's measured state: what a planning call sees of its contacts
+/// (`dips_planning::first_mode`). Negative is penetration.
+pub fn fingertip_distances<H: Hand + ?Sized>(
+    hand: &H,
+    model: &HandModel,
+) -> Result<Vec<f64>, ExecError> {
+    let task = hand.scene();
+    let state = hand_state(hand);
+    let mode = task.modes()[0];
+    let spec = ProblemSpec {
+        task,
+        mode,
+        horizon: 1,
+        goal: mode_goal(mode, &state, CardGoals::default()),
+        start: state.clone(),
+    };
+    let problem = AllegroProblem::new(model, &spec)?;
+    let nq = 4 * problem.fingers();
+    let o = [state[nq], state[nq + 1], state[nq + 2]];
+    Ok((0..problem.fingers())
+        .map(|i| {
+            let q = [
+                state[4 * i],
+                state[4 * i + 1],
+                state[4 * i + 2],
+                state[4 * i + 3],
+            ];
+            problem.finger_sdf(i, &q, &o)
+        })
+        .collect())
+}
+
 /// The best particle's largest constraint violation (equality or inequality).
 fn worst_violation(report: &SolveReport) -> f64 {
     report.max_eq_violation[0].max(report.max_ineq_violation[0])

@@ -15,6 +15,7 @@
 //! the wire (`dips-link`: `dips-firmware-sim` spawned or reached over TCP). Both answer with
 //! the same [`PlanOutcome`], bit for bit for the same call.
 
+pub mod first_mode;
 pub mod online;
 pub mod policy;
 pub mod quality;

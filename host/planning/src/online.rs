@@ -20,7 +20,7 @@ use std::time::Instant;
 
 use dips_kernel::diffusion::SamplerConfig;
 use dips_kernel::engine::DenoiserEngine;
-use dips_kernel::mode::{ModeId, Task};
+use dips_kernel::mode::{ModeId, ModeSet, Task};
 use dips_kernel::name::UnknownValue;
 use dips_kernel::prior::{MarkovPrior, PriorError};
 use dips_kernel::rng::KernelRng;
@@ -28,6 +28,7 @@ use dips_kernel::search::{SearchConfig, SearchOverrides, SearchVariant};
 use dips_kernel::session::{PlanSpec, SpecError};
 use dips_kernel::task::CardGoals;
 
+use crate::first_mode::{FirstModeRule, TOUCH_TOLERANCE_M};
 use crate::policy::PolicyError;
 use crate::sized::PlannerSize;
 use crate::stop_rule::{PlanGain, StopRule};
@@ -38,8 +39,8 @@ use dips_exec::episode::{CARD_MODES, SCREWDRIVER_MODES};
 use dips_exec::problems::contract::{LayoutError, contract_state, from_contract};
 use dips_exec::problems::{AllegroProblem, Mode, ProblemError, ProblemSpec};
 use dips_exec::{
-    EpisodeResult, ExecError, ExecSettings, ParticleSummary, PlanRecord, hand_state, mode_goal,
-    pose_valid, prior_sequence_for_seed, run_mode, true_hand_state,
+    EpisodeResult, ExecError, ExecSettings, ParticleSummary, PlanRecord, fingertip_distances,
+    hand_state, mode_goal, pose_valid, prior_sequence_for_seed, run_mode, true_hand_state,
 };
 use dips_world::hand::Hand;
 use dips_world::kinematics::HandModel;
@@ -268,6 +269,8 @@ pub struct OnlineSettings {
     /// When a searching method stops before its mode limit ([`StopRule`]; the paper's when
     /// the plan holds no mode).
     pub stop_rule: StopRule,
+    /// Which modes a plan may begin with ([`FirstModeRule`]; the paper's: any).
+    pub first_mode: FirstModeRule,
     /// The in-process planner's capacities ([`PlannerSize`]; the firmware's by default).
     /// A kernel over the wire has its own.
     pub planner_size: PlannerSize,
@@ -354,6 +357,7 @@ impl Default for OnlineSettings {
             max_modes: None,
             search_depth: None,
             stop_rule: StopRule::default(),
+            first_mode: FirstModeRule::default(),
             planner_size: PlannerSize::default(),
         }
     }
@@ -475,6 +479,10 @@ fn plan_call<H: Hand + ?Sized>(
         .with_card_goals(card_goals);
     spec.sampler = settings.sampler;
     spec.executed = executed.last().map(|m| m.id());
+    if !settings.first_mode.is_paper() {
+        let distances = fingertip_distances(hand, &HandModel::allegro_v4())?;
+        spec.first_modes = settings.first_mode.first_modes(task, &distances);
+    }
     spec.check().map_err(OnlineError::Spec)?;
     let t0 = Instant::now();
     let report = planner
@@ -517,6 +525,13 @@ fn plan_call<H: Hand + ?Sized>(
                     .and_then(|&id| Mode::from_id(task, id))
                     .map(|m| m.name().to_string())
             })
+        }),
+        first_modes: (spec.first_modes != ModeSet::all(task)).then(|| {
+            task.candidate_modes()
+                .filter(|&id| spec.first_modes.contains(id))
+                .filter_map(|id| Mode::from_id(task, id))
+                .map(|m| m.name())
+                .collect()
         }),
         stopped_no_gain: settings.stop_rule == StopRule::NoGain
             && !modes.is_empty()
@@ -645,6 +660,14 @@ pub fn run_online<H: Hand + ?Sized>(
                     record.modes.join(", ")
                 )
             });
+            if let Some(first) = &record.first_modes {
+                progress(&format!(
+                    "  first mode limited to {}: a contact finger of the others is more than \
+                     {:.0} mm off the object",
+                    first.join(", "),
+                    TOUCH_TOLERANCE_M * 1e3
+                ));
+            }
             planning_s.push(record.seconds);
             let stop_here = record.stopped_no_gain;
             plans.push(record);

@@ -19,7 +19,7 @@ use super::report::{
 };
 use super::traits::{SegmentSampler, SegmentScorer, TaskObjective};
 use crate::budget::Clock;
-use crate::mode::{ContactMode, MAX_MODES, MAX_STATE_DIM, ModeId, SegmentDims, Task};
+use crate::mode::{ContactMode, MAX_MODES, MAX_STATE_DIM, ModeId, ModeSet, SegmentDims, Task};
 use crate::prior::MarkovPrior;
 use crate::rng::KernelRng;
 use heapless::binary_heap::{BinaryHeap, Min};
@@ -48,6 +48,11 @@ pub struct Problem<'a> {
     /// The contact-mode prior over the task's modes; the search floors it at
     /// [`SearchConfig::p_min`].
     pub prior: &'a MarkovPrior,
+    /// The modes the plan may begin with ([`ModeSet::all`] for any): the root is expanded
+    /// into these only. A caller that sees a finger off the object leaves out the modes that
+    /// need it in contact (`docs/online.md`, "The first mode"). Must name at least one of the
+    /// task's modes and none beyond.
+    pub first_modes: ModeSet,
 }
 
 #[derive(Debug, Clone, Copy)]
@@ -242,6 +247,7 @@ struct Ctx<'a> {
     prior: MarkovPrior,
     k: usize,
     stored: usize,
+    first_modes: ModeSet,
 }
 
 /// The DIPS A* planner with fixed capacities (see the module docs).
@@ -373,6 +379,7 @@ impl<const K: usize, const N: usize, const O: usize, const S: usize> Planner<K, 
             || !sampler.accepts(&dims)
             || !scorer.accepts(&dims)
             || problem.executed.is_some_and(|m| m.index() >= n_modes)
+            || !problem.first_modes.valid_for(task)
         {
             return Err(SearchStatus::InvalidProblem);
         }
@@ -435,6 +442,7 @@ impl<const K: usize, const N: usize, const O: usize, const S: usize> Planner<K, 
             prior,
             k,
             stored,
+            first_modes: problem.first_modes,
         })
     }
 
@@ -617,6 +625,11 @@ impl<const K: usize, const N: usize, const O: usize, const S: usize> Planner<K, 
         let from = (node.mode != NO_MODE).then_some(ModeId(node.mode));
         let end_row = (dims.horizon - 1) * d;
         for (m, mode) in ctx.task.candidate_modes().enumerate() {
+            if node.depth == 0 && !ctx.first_modes.contains(mode) {
+                // The plan may not begin with this mode (its segments were sampled with the
+                // batch and are dropped).
+                continue;
+            }
             let base = m * k;
             let mut parent_scores = [0.0f32; K];
             for (j, p) in parent_scores[..k].iter_mut().enumerate() {

@@ -29,6 +29,7 @@ pub fn screwdriver_problem<'a>(
         start,
         executed,
         prior,
+        first_modes: dips_kernel::mode::ModeSet::all(Task::Screwdriver),
     }
 }
 

@@ -25,6 +25,8 @@ pub enum RequestField {
     /// `SetSampler` settings (no DDIM steps, noise factor outside `[0, 1]`, guidance not
     /// finite).
     Sampler,
+    /// The first modes (no mode of the task, or a bit beyond its mode table).
+    FirstModes,
 }
 
 impl fmt::Display for RequestField {
@@ -36,6 +38,7 @@ impl fmt::Display for RequestField {
             Self::PreviousMode => "previous_mode",
             Self::Prior => "prior",
             Self::Sampler => "sampler",
+            Self::FirstModes => "first_modes",
         })
     }
 }

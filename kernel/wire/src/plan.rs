@@ -117,6 +117,10 @@ pub struct PlanRequest {
     pub previous_mode: Option<u8>,
     /// The card's goals (ignored for the screwdriver).
     pub card_goals: CardGoals,
+    /// The modes the plan may begin with, one bit per index into the task's mode table
+    /// (bit `i` = mode `i`; every mode: `(1 << modes) - 1`). At least one of the task's modes
+    /// and no bit beyond its table, else [`crate::error::RequestField::FirstModes`].
+    pub first_modes: u8,
 }
 
 impl MaxSize for PlanRequest {
@@ -125,7 +129,8 @@ impl MaxSize for PlanRequest {
         + f32::POSTCARD_MAX_SIZE
         + SearchSettings::POSTCARD_MAX_SIZE
         + Option::<u8>::POSTCARD_MAX_SIZE
-        + CardGoals::POSTCARD_MAX_SIZE;
+        + CardGoals::POSTCARD_MAX_SIZE
+        + u8::POSTCARD_MAX_SIZE;
 }
 
 /// Why a plan is only approximate.

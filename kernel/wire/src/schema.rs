@@ -7,7 +7,7 @@
 //! and whoever updates them must describe the change in [`SCHEMA`], which changes the key.
 
 /// Wire protocol version; bump it for any change that is not an appended variant.
-pub const PROTOCOL_VERSION: u16 = 2;
+pub const PROTOCOL_VERSION: u16 = 3;
 
 /// The message layout this crate encodes, as text (field order is encoding order).
 pub const SCHEMA: &str = "\
@@ -17,7 +17,7 @@ FromKernel{0:HelloAck,1:PlanReply,2:ModelAck,3:ModelLoaded,4:Error(WireError),5:
 Hello{protocol_version:u16,schema_key:u64};\
 HelloAck{protocol_version:u16,schema_key:u64,max_frame_len_bytes:u32,model_chunk_len_bytes:u32};\
 Task{0:Screwdriver,1:Card};\
-PlanRequest{task:Task,start_state:Vec<f32,16>,goal:f32,settings:SearchSettings,previous_mode:Option<u8>,card_goals:CardGoals};\
+PlanRequest{task:Task,start_state:Vec<f32,16>,goal:f32,settings:SearchSettings,previous_mode:Option<u8>,card_goals:CardGoals,first_modes:u8};\
 CardGoals{0:Paper,1:Capped};\
 SearchSettings{k:u16,max_depth:u8,gamma:f32,alpha:f32,beta:f32,p_min:f32,node_budget:u32,time_budget_ms:u32,seed:u64,cost_to_come:CostToCome,variant:SearchVariant};\
 CostToCome{0:Cumulative,1:LastSegment};SearchVariant{0:Particles,1:MaxLikelihood};\
@@ -38,7 +38,7 @@ WireError{0:BadFrame,1:TooLong{len_bytes:u32,max_bytes:u32},2:DecodeFailed,3:Unk
 5:HandshakeRequired,6:Busy,7:Upload(UploadError),8:ModelNotLoaded{role:ModelRole},9:PlannerUnavailable,\
 10:InvalidRequest{field:RequestField},11:ModelRejected{role:ModelRole,fault:ModelFault}};\
 ModelFault{0:Invalid,1:WrongShape,2:TooLarge{needed_floats:u32,capacity_floats:u32}};\
-RequestField{0:StartState,1:Goal,2:Settings,3:PreviousMode,4:Prior,5:Sampler};\
+RequestField{0:StartState,1:Goal,2:Settings,3:PreviousMode,4:Prior,5:Sampler,6:FirstModes};\
 PriorTable{task:Task,probabilities:Vec<f32,20>};\
 SamplerMethod{0:Ddpm{noise_factor:f32},1:Ddim{steps:u16},2:DdimEta{steps:u16,eta:f32},3:DdpmStrided{steps:u16,noise_factor:f32}};SamplerSettings{method:SamplerMethod,guidance_weight:f32};\
 UploadError{0:NotStarted,1:TooLarge{total_len_bytes:u32,capacity_bytes:u32},\

@@ -32,6 +32,7 @@ fn canonical_to_kernel() -> std::vec::Vec<ToKernel> {
             },
             previous_mode: Some(2),
             card_goals: Default::default(),
+            first_modes: 0b111,
         }),
         ToKernel::ModelBegin(ModelBegin {
             role: ModelRole::Discriminator,
@@ -201,7 +202,7 @@ fn canonical_errors() -> std::vec::Vec<WireError> {
 
 const GOLDEN_TO_KERNEL: [&str; 9] = [
     "02070b01ef9bafcdf8acd1910100",
-    "03070102040101023f010380bf01010101010d803f920a86bf10076666663f04401c46010d7a44cdcccc3d904ee0a7122a010401020100",
+    "03070102040101023f010380bf01010101010d803f920a86bf10076666663f04401c46010d7a44cdcccc3d904ee0a7122a01050102010700",
     "0b070201e807a6f2d0df0c00",
     "060703800404040102ff00",
     "03070400",
@@ -234,12 +235,12 @@ const GOLDEN_ERRORS: [&str; 13] = [
     "0507040a0500",
     "0407040b0502ac020200",
 ];
-const GOLDEN_SCHEMA_KEY: u64 = 0x9990_1035_9b24_299a;
+const GOLDEN_SCHEMA_KEY: u64 = 0xdce2_3497_e44c_66c6;
 
 #[test]
 fn schema_key_is_pinned() {
     assert_eq!(SCHEMA_KEY, GOLDEN_SCHEMA_KEY, "actual {SCHEMA_KEY:#018x}");
-    assert_eq!(PROTOCOL_VERSION, 2);
+    assert_eq!(PROTOCOL_VERSION, 3);
 }
 
 #[test]

@@ -41,6 +41,7 @@ proptest! {
             settings: SearchSettings::default(),
             previous_mode: None,
             card_goals: Default::default(),
+            first_modes: 0b1111,
         });
         let bytes = encode(1, msg);
         let frames = deframe::<ToKernel>(&bytes, &[3]);
@@ -90,6 +91,7 @@ fn max_sizes_are_bounds() {
         },
         previous_mode: Some(u8::MAX),
         card_goals: Default::default(),
+        first_modes: 0b111,
     });
     for msg in [big_chunk, big_request] {
         let mut buf = [0u8; 4096];

@@ -48,9 +48,10 @@ prop_compose! {
     pub fn plan_request()(
         task in task(), start_state in f32_vec::<MAX_STATE_DIM>(), goal in finite_f32(),
         settings in settings(), previous_mode in any::<Option<u8>>(), paper in any::<bool>(),
+        first_modes in any::<u8>(),
     ) -> PlanRequest {
         let card_goals = if paper { CardGoals::Paper } else { CardGoals::Capped };
-        PlanRequest { task, start_state, goal, settings, previous_mode, card_goals }
+        PlanRequest { task, start_state, goal, settings, previous_mode, card_goals, first_modes }
     }
 }
 
