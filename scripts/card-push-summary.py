@@ -4,7 +4,9 @@ for every card episode of `dips eval` runs, the card's y change per executed mod
 `both` pushes, one-finger `index`/`middle` pushes), pushes that moved it back by more than
 2 mm, steps where a fingertip pressed the table with more than 1 N, the final distances, the
 modes where a regrasping finger came within 2 mm of the card before its last step (early
-touch-downs) and the steps the regrasp guard changed (`--regrasp-guard`); for every run after
+touch-downs), the steps the regrasp guard changed (`--regrasp-guard`), the planning calls whose
+first mode was limited (`--first-mode touching`) and the card y change of the modes they
+chose; for every run after
 the first, the paired difference of final distances to the first on the seeds both ran.
 
 Usage: scripts/card-push-summary.py OUT.json NAME=RUN_DIR...
@@ -23,13 +25,17 @@ REGRASPING = {"index": [1], "middle": [0], "regrasp": [0, 1], "both": []}
 
 def summary(run):
     both, single, back, table_steps, steps, finals, valid = [], [], 0, 0, 0, [], 0
-    early, guarded, by_seed = 0, 0, {}
+    early, guarded, by_seed, limited = 0, 0, {}, []
     files = sorted(glob.glob(os.path.join(run, "episodes", "*", "seed-*", "result.json")))
     for f in files:
         r = json.load(open(f))
         finals.append(100 * r["final_distance_m"])
         by_seed[r["seed"]] = 100 * r["final_distance_m"]
         valid += bool(r["valid"])
+        for p in r.get("plans", []):
+            if p.get("first_modes") and p["executed"] < len(r["mode_runs"]):
+                m = r["mode_runs"][p["executed"]]
+                limited.append(100 * (m["end_state"][-2] - m["start_state"][-2]))
         for m in r["mode_runs"]:
             dy = 100 * (m["end_state"][-2] - m["start_state"][-2])
             if m["mode"] == "both":
@@ -61,6 +67,8 @@ def summary(run):
         "steps": steps,
         "early_touch_downs": early,
         "guarded_steps": guarded,
+        "limited_first_modes": {"calls": len(limited), "mean_dy_cm": mean(limited),
+                                "moving_back_over_2mm": sum(d > 0.2 for d in limited)},
         "by_seed": by_seed,
     }
 
@@ -89,7 +97,8 @@ def main():
               f"both {s['both_push_dy_cm']['mean']:.2f} cm ({s['both_push_dy_cm']['n']}); "
               f"single {s['single_push_dy_cm']['mean']:.2f} cm ({s['single_push_dy_cm']['n']}); "
               f"back {s['pushes_moving_back_over_2mm']}; table {s['steps_pressing_the_table_over_1N']}/{s['steps']}; "
-              f"early touch-downs {s['early_touch_downs']}; guarded steps {s['guarded_steps']}"
+              f"early touch-downs {s['early_touch_downs']}; guarded steps {s['guarded_steps']}; "
+              f"limited first modes {s['limited_first_modes']['calls']}"
               + (f"; paired − first {s['paired_minus_first_cm']['mean']:+.2f} ± "
                  f"{s['paired_minus_first_cm']['se']:.2f} cm" if "paired_minus_first_cm" in s else ""))
 
