@@ -23,7 +23,7 @@ e = json.load(open(sys.argv[1]))["eval"]["episode"]
 print(e["task"])
 for key in ("models", "sampler", "time_budget_s", "node_budget", "max_modes", "cost_to_come",
             "search_depth", "alpha", "beta", "engine", "card_goals", "hand", "stop_rule", "first_mode",
-            "planner_size", "exec_profile", "pose_estimate", "regrasp_guard"):
+            "planner_size", "exec_profile", "pose_estimate", "regrasp_guard", "press"):
     if e.get(key) is not None:
         print("--" + key.replace("_", "-"))
         print(e[key])

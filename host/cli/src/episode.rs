@@ -128,6 +128,7 @@ pub fn run(args: EpisodeArgs, hands: &dyn Hands) -> anyhow::Result<()> {
         ExecSettings::for_profile(task, args.exec_profile.exec_profile.unwrap_or_default())?;
     exec.pose_estimate = args.exec_profile.pose_estimate.unwrap_or_default();
     exec.regrasp_guard = args.exec_profile.regrasp_guard.unwrap_or_default();
+    exec.press = args.exec_profile.press.unwrap_or_default();
     let trained = match (&models, &args.models) {
         (Some(m), _) => Some((m.dir.clone(), m.trained_card_goals())),
         // A method without models (csvto-sampled) still executes the goals of models given.

@@ -324,6 +324,11 @@ pub fn run(args: EvalArgs, hands: &dyn Hands) -> anyhow::Result<()> {
             .regrasp_guard
             .or(given.map(|e| e.episode.regrasp_guard))
             .unwrap_or_default(),
+        press: args
+            .exec_profile
+            .press
+            .or(given.map(|e| e.episode.press))
+            .unwrap_or_default(),
     };
     settings.card_goals = args.card_goals.resolve(
         task.task(),

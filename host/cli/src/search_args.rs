@@ -9,7 +9,7 @@ use std::str::FromStr;
 
 use clap::Args;
 use clap::builder::{PossibleValue, TypedValueParser};
-use dips_exec::{ExecProfile, PoseEstimate, RegraspGuard};
+use dips_exec::{ExecProfile, PoseEstimate, Press, RegraspGuard};
 use dips_kernel::diffusion::SamplerConfig;
 use dips_kernel::mode::Task;
 use dips_kernel::search::{CostToCome, SearchOverrides};
@@ -153,6 +153,14 @@ impl Named for PoseEstimate {
     ];
 }
 
+impl Named for Press {
+    const NAMES: &'static [&'static str] = &Press::NAMES;
+    const HELP: &'static [&'static str] = &[
+        "Contact fingers press with at least 0.05 N (the problems the data were made with)",
+        "Contact fingers press with at least 0.3 N in the executed modes",
+    ];
+}
+
 impl Named for RegraspGuard {
     const NAMES: &'static [&'static str] = &RegraspGuard::NAMES;
     const HELP: &'static [&'static str] = &[
@@ -184,6 +192,12 @@ pub struct ExecProfileArgs {
     /// from the surface; docs/mujoco.md). `dips eval` resumes with the directory's.
     #[arg(long, value_parser = named::<RegraspGuard>())]
     pub regrasp_guard: Option<RegraspGuard>,
+    /// How hard the contact fingers of executed modes press at least: `light` (the default,
+    /// 0.05 N, the problems the data were generated with) or `firm` (0.3 N, for a hand with
+    /// compliant contacts; docs/mujoco.md, "A firmer press"). Execution only: the planner and
+    /// its models are unchanged. `dips eval` resumes with the directory's.
+    #[arg(long, value_parser = named::<Press>())]
+    pub press: Option<Press>,
 }
 
 impl Named for PlannerSize {

@@ -141,6 +141,12 @@ fn flags_say_what_is_allowed() {
         err.contains("lab") && err.contains("simulation") && err.contains("hardware"),
         "{err}"
     );
+    let (code, err) = with(&["--press", "hard"]);
+    assert_eq!(code, Some(2), "{err}");
+    assert!(
+        err.contains("hard") && err.contains("light") && err.contains("firm"),
+        "{err}"
+    );
     let (code, err) = with(&["--first-mode", "sometimes"]);
     assert_eq!(code, Some(2), "{err}");
     assert!(

@@ -995,6 +995,7 @@ mod tests {
                 exec_profile: Default::default(),
                 pose_estimate: Default::default(),
                 regrasp_guard: Default::default(),
+                press: Default::default(),
             },
             methods: vec![Method::Dips],
             first_seed,

@@ -3,7 +3,7 @@
 use std::path::{Path, PathBuf};
 
 use dips_batch::{ProgressMode, Shard};
-use dips_exec::{ExecProfile, ExecSettings, PoseEstimate, ProfileError, RegraspGuard};
+use dips_exec::{ExecProfile, ExecSettings, PoseEstimate, Press, ProfileError, RegraspGuard};
 use dips_kernel::diffusion::SamplingMethod;
 use dips_kernel::search::CostToCome;
 use dips_kernel::task::CardGoals;
@@ -94,6 +94,10 @@ pub struct EpisodeSettings {
     /// when on: absent means `off`.
     #[serde(default, skip_serializing_if = "RegraspGuard::is_off")]
     pub regrasp_guard: RegraspGuard,
+    /// How hard the contact fingers pressed (`--press`). Written only when not light:
+    /// absent means `light`.
+    #[serde(default, skip_serializing_if = "Press::is_light")]
+    pub press: Press,
 }
 
 impl EpisodeSettings {
@@ -175,6 +179,8 @@ pub struct EvalSettings {
     pub pose_estimate: PoseEstimate,
     /// Whether regrasping fingers' commands are guarded (`--regrasp-guard`).
     pub regrasp_guard: RegraspGuard,
+    /// How hard the contact fingers of executed modes press (`--press`).
+    pub press: Press,
     /// The run's registration under a protocol (`dips eval --protocol`,
     /// [`crate::protocol::ProtocolFile::register`]), written to `registration.json` when the
     /// directory is claimed; `None` for a run without a protocol.
@@ -347,12 +353,14 @@ impl EvalSettings {
 
     /// How every episode executes its modes: the task's CSVTO settings under
     /// [`EvalSettings::exec_profile`], aiming at [`EvalSettings::card_goals`], starting each
-    /// solve from [`EvalSettings::pose_estimate`], with [`EvalSettings::regrasp_guard`].
+    /// solve from [`EvalSettings::pose_estimate`], with [`EvalSettings::regrasp_guard`] and
+    /// [`EvalSettings::press`].
     pub fn exec_settings(&self) -> Result<ExecSettings, ProfileError> {
         Ok(ExecSettings {
             card_goals: self.card_goals,
             pose_estimate: self.pose_estimate,
             regrasp_guard: self.regrasp_guard,
+            press: self.press,
             ..ExecSettings::for_profile(self.task, self.exec_profile)?
         })
     }
@@ -409,6 +417,7 @@ impl EvalSettings {
             exec_profile: self.exec_profile,
             pose_estimate: self.pose_estimate,
             regrasp_guard: self.regrasp_guard,
+            press: self.press,
         }
     }
 }
@@ -549,6 +558,7 @@ mod tests {
             exec_profile: ExecProfile::Simulation,
             pose_estimate: PoseEstimate::Tracker,
             regrasp_guard: RegraspGuard::Off,
+            press: Press::Light,
         }
     }
 
@@ -604,6 +614,16 @@ mod tests {
             guarded
         );
         assert_eq!(sim.first_difference(&guarded).0, "regrasp_guard");
+        // The press likewise: absent is light, `firm` is written.
+        assert!(serde_json::to_value(&sim).unwrap().get("press").is_none());
+        let firm = EpisodeSettings {
+            press: Press::Firm,
+            ..sim.clone()
+        };
+        let v = serde_json::to_value(&firm).unwrap();
+        assert_eq!(v["press"], "firm");
+        assert_eq!(serde_json::from_value::<EpisodeSettings>(v).unwrap(), firm);
+        assert_eq!(sim.first_difference(&firm).0, "press");
         assert!(
             serde_json::to_value(&sim)
                 .unwrap()

@@ -56,6 +56,7 @@ fn settings(methods: Vec<Method>, trials: usize) -> EvalSettings {
         exec_profile: Default::default(),
         pose_estimate: Default::default(),
         regrasp_guard: Default::default(),
+        press: Default::default(),
     }
 }
 

@@ -77,6 +77,7 @@ fn settings(models: &Path, methods: Vec<Method>, first_seed: u64) -> EvalSetting
         exec_profile: Default::default(),
         pose_estimate: Default::default(),
         regrasp_guard: Default::default(),
+        press: Default::default(),
     }
 }
 

@@ -14,6 +14,7 @@ use super::mode_run::{
 };
 use super::settings::{ExecProfile, ExecSettings};
 use crate::pose_estimate::PoseEstimate;
+use crate::press::Press;
 use crate::problems::Mode;
 use crate::regrasp_guard::RegraspGuard;
 use dips_world::hand::Hand;
@@ -287,6 +288,10 @@ pub struct EpisodeResult {
     /// left out when off, as in files written before the guard existed.
     #[serde(skip_serializing_if = "RegraspGuard::is_off")]
     pub regrasp_guard: RegraspGuard,
+    /// How hard contact fingers pressed ([`ExecSettings::press`]); left out when light, as in
+    /// files written before it was recorded.
+    #[serde(skip_serializing_if = "Press::is_light")]
+    pub press: Press,
 }
 
 /// One planning call of an online method (`result.json`'s `plans`).
@@ -533,18 +538,20 @@ impl EpisodeResult {
             exec_profile: ExecProfile::Simulation,
             pose_estimate: PoseEstimate::Tracker,
             regrasp_guard: RegraspGuard::Off,
+            press: Press::Light,
         }
     }
 
     /// Record what executed the episode: the hand's name ([`Hand::name`]) and the execution
     /// settings that reach `result.json` (the card's goals, the CSVTO profile, the pose
-    /// estimate, the regrasp guard).
+    /// estimate, the regrasp guard, the press).
     pub fn record_execution(&mut self, hand: &'static str, settings: &ExecSettings) {
         self.hand = hand;
         self.card_goals = settings.card_goals;
         self.exec_profile = settings.profile;
         self.pose_estimate = settings.pose_estimate;
         self.regrasp_guard = settings.regrasp_guard;
+        self.press = settings.press;
     }
 }
 

@@ -15,6 +15,7 @@
 pub mod episode;
 pub mod mode_run;
 pub mod pose_estimate;
+pub mod press;
 pub mod problems;
 pub mod regrasp_guard;
 pub mod settings;
@@ -29,5 +30,6 @@ pub use mode_run::{
     pose_valid, run_mode, run_mode_observed, true_hand_state,
 };
 pub use pose_estimate::PoseEstimate;
+pub use press::Press;
 pub use regrasp_guard::RegraspGuard;
 pub use settings::{ExecProfile, ExecSettings, ProfileError};

@@ -274,7 +274,7 @@ fn estimated_problem<H: Hand + ?Sized>(
     settings: &ExecSettings,
     set_goal: bool,
 ) -> Result<AllegroProblem, ExecError> {
-    let problem = AllegroProblem::new(model, spec)?;
+    let problem = AllegroProblem::new(model, spec)?.with_min_normal_force(settings.press.newtons());
     if settings.pose_estimate.is_tracker() {
         return Ok(problem);
     }
@@ -285,7 +285,7 @@ fn estimated_problem<H: Hand + ?Sized>(
     if set_goal {
         spec.goal = mode_goal(spec.mode, &spec.start, settings.card_goals);
     }
-    Ok(AllegroProblem::new(model, spec)?)
+    Ok(AllegroProblem::new(model, spec)?.with_min_normal_force(settings.press.newtons()))
 }
 
 /// Execute `mode` on `hand` (the quasi-static world, a recorder around it, or a real hand)

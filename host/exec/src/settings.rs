@@ -7,6 +7,7 @@ use dips_world::kinematics::Finger;
 use dips_world::scenes::SceneKind;
 
 use crate::pose_estimate::PoseEstimate;
+use crate::press::Press;
 use crate::problems::Mode;
 use crate::regrasp_guard::RegraspGuard;
 
@@ -58,6 +59,10 @@ pub struct ExecSettings {
     /// (the paper's execution; then left out of settings files).
     #[serde(skip_serializing_if = "RegraspGuard::is_off")]
     pub regrasp_guard: RegraspGuard,
+    /// How hard contact fingers press in the executed modes ([`Press`]): light by default
+    /// (the problems the data were generated with; then left out of settings files).
+    #[serde(skip_serializing_if = "Press::is_light")]
+    pub press: Press,
 }
 
 /// Which of the paper's two CSVTO settings execute the modes: those of its simulation
@@ -185,6 +190,7 @@ impl ExecSettings {
                 profile: ExecProfile::Simulation,
                 pose_estimate: PoseEstimate::Tracker,
                 regrasp_guard: RegraspGuard::Off,
+                press: Press::Light,
             },
             SceneKind::Card => Self {
                 csvto: CsvtoSettings {
@@ -202,6 +208,7 @@ impl ExecSettings {
                 profile: ExecProfile::Simulation,
                 pose_estimate: PoseEstimate::Tracker,
                 regrasp_guard: RegraspGuard::Off,
+                press: Press::Light,
             },
         }
     }

@@ -8,8 +8,7 @@ use std::f64::consts::PI;
 use super::geometry::{Lifted, object_pose, seed, tangents};
 use super::rows::{CONTACT_EQ_ROWS, FREE_MOTION_ROWS, LIFT_OFF_ROWS};
 use super::{
-    AllegroProblem, CLEARANCE_MARGIN, MIN_NORMAL_FORCE, PLANNER_FRICTION, PYRAMID_FACES,
-    REGRASP_CLEARANCE, StepRows,
+    AllegroProblem, CLEARANCE_MARGIN, PLANNER_FRICTION, PYRAMID_FACES, REGRASP_CLEARANCE, StepRows,
 };
 use crate::problems::dual::{Dual, V3};
 use dips_csvto::{Problem, StepConstraints};
@@ -297,7 +296,7 @@ impl AllegroProblem {
             balance,
             wrench,
             friction,
-            min_normal: c + MIN_NORMAL_FORCE,
+            min_normal: c + self.min_normal_force,
         }
     }
 

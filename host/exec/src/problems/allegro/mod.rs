@@ -165,6 +165,9 @@ pub struct AllegroProblem {
     joint_lo: Vec<f64>,
     joint_hi: Vec<f64>,
     dq_bound: f64,
+    /// Smallest normal force of a contact finger (N; [`MIN_NORMAL_FORCE`] unless
+    /// [`AllegroProblem::with_min_normal_force`] set it).
+    min_normal_force: f64,
     /// The task's cost weights (the kernel's [`CostWeights`], in `f64`).
     weights: Weights,
     /// Goal weights (terminal, running) of this mode.
@@ -340,6 +343,7 @@ impl AllegroProblem {
             joint_lo,
             joint_hi,
             dq_bound,
+            min_normal_force: MIN_NORMAL_FORCE,
             weights: Weights::of(task),
             goal_weights,
             pinned: pinned_object_coords(task, spec.mode),
@@ -441,6 +445,19 @@ impl AllegroProblem {
     /// Index of task finger `i` among the contact fingers, if it is in contact.
     pub fn contact_slot(&self, i: usize) -> Option<usize> {
         self.slot[i]
+    }
+
+    /// The same problem with each contact finger pressing with at least `newtons` (N) instead
+    /// of [`MIN_NORMAL_FORCE`]: the `--press firm` execution setting
+    /// ([`Press`](crate::press::Press)).
+    pub fn with_min_normal_force(mut self, newtons: f64) -> Self {
+        self.min_normal_force = newtons;
+        self
+    }
+
+    /// The smallest normal force of a contact finger (N).
+    pub fn min_normal_force(&self) -> f64 {
+        self.min_normal_force
     }
 
     /// Signed distance of finger `i`'s sphere at `(q, o)` (`o` in metres and radians).
