@@ -201,19 +201,22 @@ pub fn fingertip_distances<H: Hand + ?Sized>(
         start: state.clone(),
     };
     let problem = AllegroProblem::new(model, &spec)?;
+    Ok(tip_distances(&problem, &state))
+}
+
+/// Finger `i`'s four joints in a state `[q (4·nf), o (3)]`.
+fn finger_joints(state: &[f64], i: usize) -> [f64; 4] {
+    std::array::from_fn(|j| state[4 * i + j])
+}
+
+/// Each finger's signed distance to the object (m) at `state` (`[q (4·nf), o (3)]`, metres
+/// and radians).
+fn tip_distances(problem: &AllegroProblem, state: &[f64]) -> Vec<f64> {
     let nq = 4 * problem.fingers();
     let o = [state[nq], state[nq + 1], state[nq + 2]];
-    Ok((0..problem.fingers())
-        .map(|i| {
-            let q = [
-                state[4 * i],
-                state[4 * i + 1],
-                state[4 * i + 2],
-                state[4 * i + 3],
-            ];
-            problem.finger_sdf(i, &q, &o)
-        })
-        .collect())
+    (0..problem.fingers())
+        .map(|i| problem.finger_sdf(i, &finger_joints(state, i), &o))
+        .collect()
 }
 
 /// The best particle's largest constraint violation (equality or inequality).
@@ -274,7 +277,10 @@ fn estimated_problem<H: Hand + ?Sized>(
     settings: &ExecSettings,
     set_goal: bool,
 ) -> Result<AllegroProblem, ExecError> {
-    let problem = AllegroProblem::new(model, spec)?.with_min_normal_force(settings.press.newtons());
+    let build = |spec: &ProblemSpec| {
+        AllegroProblem::new(model, spec).map(|p| p.with_min_normal_force(settings.press.newtons()))
+    };
+    let problem = build(spec)?;
     if settings.pose_estimate.is_tracker() {
         return Ok(problem);
     }
@@ -285,7 +291,7 @@ fn estimated_problem<H: Hand + ?Sized>(
     if set_goal {
         spec.goal = mode_goal(spec.mode, &spec.start, settings.card_goals);
     }
-    Ok(AllegroProblem::new(model, spec)?.with_min_normal_force(settings.press.newtons()))
+    Ok(build(spec)?)
 }
 
 /// Execute `mode` on `hand` (the quasi-static world, a recorder around it, or a real hand)
@@ -442,17 +448,7 @@ pub fn run_mode_observed<H: Hand + ?Sized>(
         command_deltas(hand, &dq)?;
         let state = hand_state(hand);
         let o = [state[nq], state[nq + 1], state[nq + 2]];
-        let tip_sdf = (0..problem.fingers())
-            .map(|i| {
-                let q = [
-                    state[4 * i],
-                    state[4 * i + 1],
-                    state[4 * i + 2],
-                    state[4 * i + 3],
-                ];
-                problem.finger_sdf(i, &q, &o)
-            })
-            .collect::<Vec<_>>();
+        let tip_sdf = tip_distances(&problem, &state);
         let valid = pose_valid(task, &hand.true_object_pose());
         // Fixed decimals without "-0.00".
         let f = |v: f64, d: usize| {
@@ -507,15 +503,7 @@ pub fn run_mode_observed<H: Hand + ?Sized>(
     let o = [end_state[nq], end_state[nq + 1], end_state[nq + 2]];
     let regrasp_target_distance = (0..problem.fingers())
         .filter(|&i| !problem.in_contact(i))
-        .map(|i| {
-            let q = [
-                end_state[4 * i],
-                end_state[4 * i + 1],
-                end_state[4 * i + 2],
-                end_state[4 * i + 3],
-            ];
-            problem.target_distance(i, &q, &o)
-        })
+        .map(|i| problem.target_distance(i, &finger_joints(&end_state, i), &o))
         .collect();
     Ok(ModeRun {
         mode: mode.name(),

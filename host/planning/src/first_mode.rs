@@ -16,9 +16,9 @@ use serde::{Deserialize, Serialize};
 
 /// A finger farther from the object than this (m) is not touching it. Chosen on the card's
 /// tuning seeds 500–529 in MuJoCo (`docs/online.md`, "The first mode"): pushes whose contact
-/// fingers started up to 4 mm off moved the card as far as those that started in contact
-/// (−1.16 to −1.24 cm against −1.01 cm); those that started 4–6 mm off moved it −0.36 cm, and
-/// they hold the modes whose warm-up did not converge.
+/// fingers started 1–4 mm off moved the card as far as those that started in contact
+/// (−1.20 cm against −1.01 cm); those that started 4–6 mm off moved it −0.36 cm, and those
+/// beyond 4 mm hold three of the four modes whose warm-up did not converge.
 pub const TOUCH_TOLERANCE_M: f64 = 4e-3;
 
 /// Which modes a planning call may begin with.
