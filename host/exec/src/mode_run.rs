@@ -201,22 +201,7 @@ pub fn fingertip_distances<H: Hand + ?Sized>(
         start: state.clone(),
     };
     let problem = AllegroProblem::new(model, &spec)?;
-    Ok(tip_distances(&problem, &state))
-}
-
-/// Finger `i`'s four joints in a state `[q (4·nf), o (3)]`.
-fn finger_joints(state: &[f64], i: usize) -> [f64; 4] {
-    std::array::from_fn(|j| state[4 * i + j])
-}
-
-/// Each finger's signed distance to the object (m) at `state` (`[q (4·nf), o (3)]`, metres
-/// and radians).
-fn tip_distances(problem: &AllegroProblem, state: &[f64]) -> Vec<f64> {
-    let nq = 4 * problem.fingers();
-    let o = [state[nq], state[nq + 1], state[nq + 2]];
-    (0..problem.fingers())
-        .map(|i| problem.finger_sdf(i, &finger_joints(state, i), &o))
-        .collect()
+    Ok(problem.finger_sdfs(&state))
 }
 
 /// The best particle's largest constraint violation (equality or inequality).
@@ -447,8 +432,8 @@ pub fn run_mode_observed<H: Hand + ?Sized>(
         }
         command_deltas(hand, &dq)?;
         let state = hand_state(hand);
-        let o = [state[nq], state[nq + 1], state[nq + 2]];
-        let tip_sdf = tip_distances(&problem, &state);
+        let o = problem.object_pose(&state);
+        let tip_sdf = problem.finger_sdfs(&state);
         let valid = pose_valid(task, &hand.true_object_pose());
         // Fixed decimals without "-0.00".
         let f = |v: f64, d: usize| {
@@ -500,10 +485,13 @@ pub fn run_mode_observed<H: Hand + ?Sized>(
         });
     }
     let end_state = hand_state(hand);
-    let o = [end_state[nq], end_state[nq + 1], end_state[nq + 2]];
+    let o = problem.object_pose(&end_state);
     let regrasp_target_distance = (0..problem.fingers())
         .filter(|&i| !problem.in_contact(i))
-        .map(|i| problem.target_distance(i, &finger_joints(&end_state, i), &o))
+        .map(|i| {
+            let q = AllegroProblem::finger_joints(&end_state, i);
+            problem.target_distance(i, &q, &o)
+        })
         .collect();
     Ok(ModeRun {
         mode: mode.name(),

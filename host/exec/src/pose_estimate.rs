@@ -149,8 +149,8 @@ pub fn fuse_contacts(
     touching: Option<&[bool]>,
 ) -> Fused {
     let nq = 4 * problem.fingers();
-    let m = [measured[nq], measured[nq + 1], measured[nq + 2]];
-    let joints = |i: usize| -> [f64; 4] { std::array::from_fn(|k| measured[4 * i + k]) };
+    let m = problem.object_pose(measured);
+    let joints = |i: usize| AllegroProblem::finger_joints(measured, i);
     let used: Vec<(usize, [f64; 4])> = (0..problem.fingers())
         .filter(|&i| problem.in_contact(i) && touching.is_none_or(|t| t[i]))
         .map(|i| (i, joints(i)))
@@ -250,14 +250,10 @@ mod tests {
     const TOUCHING: [bool; 3] = [true, false, true];
 
     fn contact_gaps(problem: &AllegroProblem, state: &[f64]) -> Vec<f64> {
-        let nq = 4 * problem.fingers();
-        let o = [state[nq], state[nq + 1], state[nq + 2]];
+        let sdfs = problem.finger_sdfs(state);
         (0..problem.fingers())
             .filter(|&i| problem.in_contact(i) && TOUCHING[i])
-            .map(|i| {
-                let q = std::array::from_fn(|k| state[4 * i + k]);
-                problem.finger_sdf(i, &q, &o).abs()
-            })
+            .map(|i| sdfs[i].abs())
             .collect()
     }
 

@@ -107,14 +107,14 @@ pub fn guard_regrasps(
     if last {
         return actions;
     }
-    let o = [state[4 * nf], state[4 * nf + 1], state[4 * nf + 2]];
+    let o = problem.object_pose(state);
     let bound = problem.dq_bound();
     for (i, action) in actions.iter_mut().enumerate() {
         if problem.in_contact(i) {
             continue;
         }
-        let q: [f64; 4] = std::array::from_fn(|k| state[4 * i + k]);
-        let step: [f64; 4] = std::array::from_fn(|k| dq[4 * i + k]);
+        let q = AllegroProblem::finger_joints(state, i);
+        let step = AllegroProblem::finger_joints(dq, i);
         let sdf = |s: f64| {
             let t: [f64; 4] = std::array::from_fn(|k| q[k] + s * step[k]);
             problem.finger_sdf(i, &t, &o)
@@ -201,8 +201,8 @@ mod tests {
         let (problem, start) = card_problem();
         let middle = 1;
         assert!(!problem.in_contact(middle));
-        let q: [f64; 4] = std::array::from_fn(|k| start[4 * middle + k]);
-        let o = [start[8], start[9], start[10]];
+        let q = AllegroProblem::finger_joints(&start, middle);
+        let o = problem.object_pose(&start);
         let before = problem.finger_sdf(middle, &q, &o);
         assert!(
             before < GUARD_FLOOR,
@@ -229,8 +229,8 @@ mod tests {
     fn a_clear_finger_stops_at_the_floor_and_the_last_step_is_free() {
         let (problem, start) = card_problem();
         let middle = 1;
-        let o = [start[8], start[9], start[10]];
-        let q0: [f64; 4] = std::array::from_fn(|k| start[4 * middle + k]);
+        let o = problem.object_pose(&start);
+        let q0 = AllegroProblem::finger_joints(&start, middle);
         // Lift the finger well clear first, with the guard's own lift.
         let up = lift(
             &problem,
@@ -244,7 +244,7 @@ mod tests {
         for k in 0..4 {
             state[4 * middle + k] += up[k];
         }
-        let q: [f64; 4] = std::array::from_fn(|k| state[4 * middle + k]);
+        let q = AllegroProblem::finger_joints(&state, middle);
         assert!(problem.finger_sdf(middle, &q, &o) > GUARD_FLOOR);
         // Then command it straight back down.
         let down: Vec<f64> = up.iter().map(|v| -v).collect();

@@ -133,10 +133,10 @@ pub fn measure(scene: SceneKind, hand: &HandModel, trajs: &[f32], contexts: &[f3
         };
         for r in 0..t - 1 {
             let next = world_state(task, rows[r + 1]);
-            let o = [next[4 * f], next[4 * f + 1], next[4 * f + 2]];
-            for i in 0..f {
-                let q: [f64; 4] = std::array::from_fn(|k| next[4 * i + k]);
-                if signs[i] > 0 {
+            let o = problem.object_pose(&next);
+            for (i, &sign) in signs.iter().enumerate() {
+                let q = AllegroProblem::finger_joints(&next, i);
+                if sign > 0 {
                     let n = problem.contact_normal(i, &q, &o);
                     let c = l.force_col(i);
                     let fv = [0, 1, 2].map(|k| f64::from(rows[r][c + k]));

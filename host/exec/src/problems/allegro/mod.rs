@@ -460,6 +460,25 @@ impl AllegroProblem {
         self.min_normal_force
     }
 
+    /// Finger `i`'s four joint angles (rad) in a state `[q (4·nf), o (3)]`.
+    pub fn finger_joints(state: &[f64], i: usize) -> [f64; 4] {
+        std::array::from_fn(|k| state[4 * i + k])
+    }
+
+    /// The object's pose (metres and radians) in a state `[q (4·nf), o (3)]`.
+    pub fn object_pose(&self, state: &[f64]) -> [f64; 3] {
+        std::array::from_fn(|k| state[4 * self.nf + k])
+    }
+
+    /// Each finger's signed distance (m) at a state `[q (4·nf), o (3)]`, in task-finger order;
+    /// negative is penetration.
+    pub fn finger_sdfs(&self, state: &[f64]) -> Vec<f64> {
+        let o = self.object_pose(state);
+        (0..self.nf)
+            .map(|i| self.finger_sdf(i, &Self::finger_joints(state, i), &o))
+            .collect()
+    }
+
     /// Signed distance of finger `i`'s sphere at `(q, o)` (`o` in metres and radians).
     pub fn finger_sdf(&self, i: usize, q: &[f64; 4], o: &[f64; 3]) -> f64 {
         self.contact(i, q, &self.obj_units(o)).sdf
