@@ -8,7 +8,8 @@ use anyhow::Context;
 use clap::{Args, ValueEnum};
 use serde::Serialize;
 
-use dips_world::hand::{Hand, HandError, HandKind, HandOptions, Hands};
+use dips_exec::hand_state;
+use dips_world::hand::{Hand, HandError, HandKind, HandOptions, Hands, add_task_deltas};
 use dips_world::kinematics::HandJoints;
 use dips_world::scenes::SceneKind;
 use dips_world::world::World;
@@ -93,26 +94,11 @@ pub struct HandTiming {
     pub mean_task_change: f64,
 }
 
-/// The measured state row of a hand (task joints, then object coordinates).
-fn state_row(hand: &dyn Hand) -> Vec<f64> {
-    crate::sim::hand_state_row(hand)
-}
-
-/// Measured joints plus a row of task-joint deltas (`docs/contracts.md` §2 order).
-fn add_deltas(scene: SceneKind, mut q: HandJoints, dq: &[f64]) -> HandJoints {
-    for (i, f) in scene.task_fingers().iter().enumerate() {
-        for (j, t) in q[f.index()].iter_mut().enumerate() {
-            *t += dq.get(4 * i + j).copied().unwrap_or(f64::NAN);
-        }
-    }
-    q
-}
-
 /// The targets of action `k` of a scripted scenario, planned as a controller would: a
 /// planning world is put at the hand's measured state and the script's joint deltas are added
 /// to the measured joints. `hold` sends the measured joints; `manipulate` is the pinch-and-turn
 /// (squeeze 4 mm, turn 6 mm) or the card's 3 mm press then 8 mm pushes along −y.
-fn scripted_targets(
+pub fn scripted_targets(
     plan: &mut World,
     hand: &dyn Hand,
     manipulate: bool,
@@ -123,13 +109,13 @@ fn scripted_targets(
     if !manipulate {
         return Ok(q);
     }
-    plan.set_state(&state_row(hand))?;
+    plan.set_state(&hand_state(hand))?;
     let dq = match scene {
         SceneKind::Screwdriver => scripted::pinch_turn_action(plan, 0.004, 0.006),
         SceneKind::Card if k == 0 => scripted::card_push_action(plan, 0.0, 0.003),
         SceneKind::Card => scripted::card_push_action(plan, -0.008, 0.0),
     };
-    Ok(add_deltas(scene, q, &dq))
+    Ok(add_task_deltas(scene, q, &dq))
 }
 
 /// Time `actions` actions (in runs of six from the start state) of each scene and scenario on

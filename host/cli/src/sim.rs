@@ -22,11 +22,13 @@ use std::path::{Path, PathBuf};
 use clap::{Args, Subcommand};
 use serde::{Deserialize, Serialize};
 
+use dips_exec::hand_state;
+use dips_exec::mode_run::command_deltas;
 use dips_report::render;
 use dips_world::hand::{Hand, HandKind, HandOptions, Hands, Recorder};
 use dips_world::kinematics::HandModel;
 use dips_world::scenes::SceneKind;
-use dips_world::world::{ContactReport, ObjectState, StepFlag, World, WorldError, WorldParams};
+use dips_world::world::{ContactReport, StepFlag, World, WorldError, WorldParams};
 
 /// `dips sim` arguments.
 #[derive(Debug, Args)]
@@ -376,37 +378,10 @@ fn write_json<T: Serialize>(path: &Path, value: &T) -> Result<(), SimCliError> {
     })
 }
 
-/// The raw state row of a hand as measured: task joints, then the object coordinates.
-pub fn hand_state_row(hand: &dyn Hand) -> Vec<f64> {
-    let scene = hand.scene();
-    let q = hand.joint_positions();
-    let mut row: Vec<f64> = scene
-        .task_fingers()
-        .iter()
-        .flat_map(|f| q[f.index()])
-        .collect();
-    row.extend(hand.object_pose().coords);
-    row
-}
-
-/// Task validity of a hand's measured object pose (our world's rule).
-pub fn hand_valid(hand: &dyn Hand) -> bool {
-    let pose = hand.object_pose();
-    match hand.scene() {
-        SceneKind::Screwdriver => ObjectState::Screwdriver {
-            orientation: pose.pose.rotation,
-            yaw: pose.coords[2],
-        },
-        SceneKind::Card => ObjectState::Card {
-            pose: pose.pose,
-            theta: pose.coords[2],
-        },
-    }
-    .valid()
-}
-
-/// Execute commands on any hand (`--hand` other than our world): the contacts are the
-/// hand's readings, the penetration the deepest of them, no world flags.
+/// Execute rows of task-joint deltas (relative to the measured joints) on any hand (`--hand`
+/// other than our world): the contacts are the hand's readings, the penetration the deepest of
+/// them, no world flags, and the task metric of every state row. Stops at the first failed
+/// action and records its error in the trajectory.
 pub fn run_commands_on(hand: &mut dyn Hand, dq: &[Vec<f64>], kind: HandKind) -> Trajectory {
     let scene = hand.scene();
     let penetration = |h: &dyn Hand| {
@@ -416,30 +391,28 @@ pub fn run_commands_on(hand: &mut dyn Hand, dq: &[Vec<f64>], kind: HandKind) -> 
             .map(|c| -c.phi)
             .fold(0.0, f64::max)
     };
+    let first = hand_state(hand);
     let mut traj = Trajectory {
         scene: scene.name().into(),
         hand: kind,
-        states: vec![hand_state_row(hand)],
-        valid: vec![hand_valid(hand)],
+        metric: vec![task_metric(scene, &first, &first)],
+        states: vec![first],
+        valid: vec![hand.object_pose().valid(scene)],
         contacts: vec![Vec::new()],
         max_penetration: vec![penetration(hand)],
         flags: vec![Vec::new()],
-        metric: Vec::new(),
         error: None,
     };
     for (k, row) in dq.iter().enumerate() {
-        let mut targets = hand.joint_positions();
-        for (i, f) in scene.task_fingers().iter().enumerate() {
-            for j in 0..4 {
-                targets[f.index()][j] += row[4 * i + j];
-            }
-        }
-        if let Err(e) = hand.command(&targets) {
+        if let Err(e) = command_deltas(hand, row) {
             traj.error = Some(format!("action {k}: {e}"));
             break;
         }
-        traj.states.push(hand_state_row(hand));
-        traj.valid.push(hand_valid(hand));
+        let state = hand_state(hand);
+        traj.metric
+            .push(task_metric(scene, &traj.states[0], &state));
+        traj.states.push(state);
+        traj.valid.push(hand.object_pose().valid(scene));
         traj.contacts
             .push(hand.contact_readings().unwrap_or_default());
         traj.max_penetration.push(penetration(hand));
@@ -468,12 +441,7 @@ fn run_on(args: &RunArgs, hands: &dyn Hands) -> Result<(), SimCliError> {
     let mut hand = hands
         .open(kind, scene, &options)
         .map_err(|e| anyhow::Error::from(e).context(format!("--hand {kind}")))?;
-    let mut traj = run_commands_on(&mut *hand, &dq, kind);
-    traj.metric = traj
-        .states
-        .iter()
-        .map(|s| task_metric(scene, &traj.states[0], s))
-        .collect();
+    let traj = run_commands_on(&mut *hand, &dq, kind);
     write_json(&args.out, &traj)?;
     if let Some(e) = &traj.error {
         return Err(anyhow::anyhow!("{e} (the trajectory up to it was written)").into());

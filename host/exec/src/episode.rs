@@ -9,9 +9,7 @@ use dips_kernel::search::ParticleDiagnostics;
 use dips_kernel::task::CardGoals;
 use serde::Serialize;
 
-use super::mode_run::{
-    ExecError, ModeRun, StepParticles, pose_valid, run_mode_observed, true_hand_state,
-};
+use super::mode_run::{ExecError, ModeRun, StepParticles, run_mode_observed, true_hand_state};
 use super::settings::{ExecProfile, ExecSettings};
 use crate::pose_estimate::PoseEstimate;
 use crate::press::Press;
@@ -463,7 +461,7 @@ pub fn run_episode_observed<H: Hand + ?Sized>(
     let mut rng = KernelRng::seed_from_u64(seed);
     let start = true_hand_state(hand);
     let mut runs = Vec::with_capacity(modes.len());
-    let mut valid = pose_valid(task, &hand.true_object_pose());
+    let mut valid = hand.true_object_pose().valid(task);
     let mut step_s = Vec::new();
     for (i, &mode) in modes.iter().enumerate() {
         progress(&format!("mode {}/{}: {}", i + 1, modes.len(), mode.name()));

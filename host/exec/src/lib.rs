@@ -27,7 +27,7 @@ pub use episode::{
 };
 pub use mode_run::{
     ExecError, ModeRun, StepLog, StepParticles, fingertip_distances, hand_state, mode_goal,
-    pose_valid, run_mode, run_mode_observed, true_hand_state,
+    run_mode, run_mode_observed, true_hand_state,
 };
 pub use pose_estimate::PoseEstimate;
 pub use press::Press;

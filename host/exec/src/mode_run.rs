@@ -11,10 +11,9 @@ use crate::problems::init::default_particles;
 use crate::problems::{AllegroProblem, Mode, ProblemError, ProblemSpec};
 use crate::regrasp_guard::{GuardAction, guard_regrasps};
 use dips_csvto::{CsvtoError, Problem, SolveReport, solve};
-use dips_world::hand::{Hand, HandError, ObjectPose};
+use dips_world::hand::{Hand, HandError, add_task_deltas};
 use dips_world::kinematics::HandModel;
 use dips_world::scenes::SceneKind;
-use dips_world::scenes::{card, screwdriver};
 
 /// The object goal of `mode` from the raw state `start` (`[q, o]`) with the card's `card`
 /// goals: the kernel's [`dips_kernel::task::mode_goal`], the one definition the search's `J`
@@ -28,12 +27,7 @@ pub fn mode_goal(mode: Mode, start: &[f64], card: CardGoals) -> [f64; 3] {
 /// Command the hand to its measured joints plus `dq`, the task fingers' joint deltas in
 /// contract order (4 per task finger); the other fingers hold.
 pub fn command_deltas<H: Hand + ?Sized>(hand: &mut H, dq: &[f64]) -> Result<(), HandError> {
-    let mut targets = hand.joint_positions();
-    for (i, f) in hand.scene().task_fingers().iter().enumerate() {
-        for j in 0..4 {
-            targets[f.index()][j] += dq[4 * i + j];
-        }
-    }
+    let targets = add_task_deltas(hand.scene(), hand.joint_positions(), dq);
     hand.command(&targets)
 }
 
@@ -172,15 +166,6 @@ pub fn true_hand_state<H: Hand + ?Sized>(hand: &H) -> Vec<f64> {
     let n = s.len() - 3;
     s[n..].copy_from_slice(&hand.true_object_pose().coords);
     s
-}
-
-/// Task validity from an object pose: the screwdriver's cap within 2 cm of nominal, the card
-/// lying flat on the table (centre within 5 mm of its resting height).
-pub fn pose_valid(scene: SceneKind, pose: &ObjectPose) -> bool {
-    match scene {
-        SceneKind::Screwdriver => screwdriver::is_valid(&pose.pose.rotation.to_rotation_matrix()),
-        SceneKind::Card => (pose.pose.translation.vector.z - card::INITIAL_CENTER[2]).abs() <= 5e-3,
-    }
 }
 
 /// The signed distance (m) from each of the task's fingertips to the object, in task-finger
@@ -434,7 +419,7 @@ pub fn run_mode_observed<H: Hand + ?Sized>(
         let state = hand_state(hand);
         let o = problem.object_pose(&state);
         let tip_sdf = problem.finger_sdfs(&state);
-        let valid = pose_valid(task, &hand.true_object_pose());
+        let valid = hand.true_object_pose().valid(task);
         // Fixed decimals without "-0.00".
         let f = |v: f64, d: usize| {
             let s = format!("{v:.d$}");

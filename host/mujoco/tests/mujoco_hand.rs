@@ -5,14 +5,14 @@
 use std::path::Path;
 use std::time::Instant;
 
-use dips_mujoco::run::{
-    AnyHand, HandKind, add_deltas, measured_valid, run_commands, run_csvto_modes, scripted_targets,
-    state_row,
-};
+use dips_cli::bench_sim::scripted_targets;
+use dips_cli::sim::run_commands_on;
+use dips_exec::hand_state;
+use dips_mujoco::run::{HandKind, MujocoHands, run_csvto_modes};
 use dips_mujoco::{
     MujocoError, MujocoHand, MujocoParams, PoseNoise, check_version, check_version_number, locate,
 };
-use dips_world::hand::Hand;
+use dips_world::hand::{Hand, HandOptions, Hands, add_task_deltas};
 use dips_world::kinematics::{Finger, HandJoints, HandModel};
 use dips_world::scenes::{SceneKind, screwdriver};
 use dips_world::world::{World, scripted};
@@ -113,9 +113,9 @@ fn holding_keeps_both_objects_put() {
 fn gripped_then_held_screwdriver_stays_valid() {
     let mut hand = MujocoHand::new(SceneKind::Screwdriver).expect("MuJoCo hand");
     let mut plan = World::new(SceneKind::Screwdriver);
-    plan.set_state(&state_row(&hand)).expect("state");
+    plan.set_state(&hand_state(&hand)).expect("state");
     let dq = scripted::pinch_turn_action(&plan, 0.004, 0.0);
-    hand.command(&add_deltas(
+    hand.command(&add_task_deltas(
         SceneKind::Screwdriver,
         hand.joint_positions(),
         &dq,
@@ -126,7 +126,7 @@ fn gripped_then_held_screwdriver_stays_valid() {
     for _ in 0..12 {
         let q = hand.joint_positions();
         hand.command(&q).expect("hold");
-        assert!(measured_valid(&hand));
+        assert!(hand.object_pose().valid(hand.scene()));
         worst = worst.max((hand.object_pose().coords[2] - c0[2]).abs());
     }
     let c = hand.object_pose().coords;
@@ -146,16 +146,16 @@ fn grazing_fingers_do_not_turn_the_screwdriver() {
         let mut hand = MujocoHand::new(SceneKind::Screwdriver).expect("MuJoCo hand");
         let mut plan = World::new(SceneKind::Screwdriver);
         let scene = SceneKind::Screwdriver;
-        plan.set_state(&state_row(&hand)).expect("state");
+        plan.set_state(&hand_state(&hand)).expect("state");
         let dq = scripted::back_off_action(&plan, gap);
-        hand.command(&add_deltas(scene, hand.joint_positions(), &dq))
+        hand.command(&add_task_deltas(scene, hand.joint_positions(), &dq))
             .expect("back off");
         let c1 = hand.object_pose().coords;
         let tips1 = hand.tip_centers();
         let pivot = screwdriver::pivot();
         let mut closest = f64::INFINITY;
         for _ in 0..3 {
-            plan.set_state(&state_row(&hand)).expect("state");
+            plan.set_state(&hand_state(&hand)).expect("state");
             let tips = plan.tip_centers();
             let moves: Vec<(Finger, Vector3<f64>)> = scene
                 .task_fingers()
@@ -167,9 +167,9 @@ fn grazing_fingers_do_not_turn_the_screwdriver() {
                 })
                 .collect();
             let dq = scripted::tip_moves_to_action(&plan, &moves);
-            hand.command(&add_deltas(scene, hand.joint_positions(), &dq))
+            hand.command(&add_task_deltas(scene, hand.joint_positions(), &dq))
                 .expect("graze");
-            plan.set_state(&state_row(&hand)).expect("state");
+            plan.set_state(&hand_state(&hand)).expect("state");
             for (_, phi, _) in scripted::tip_contacts(&plan) {
                 closest = closest.min(phi);
             }
@@ -220,7 +220,7 @@ fn scripted_manipulation_moves_the_objects() {
             scene.name(),
             hand.max_penetration() * 1e3
         );
-        assert!(measured_valid(&hand));
+        assert!(hand.object_pose().valid(hand.scene()));
         match scene {
             SceneKind::Screwdriver => assert!(c[2] - c0[2] < -0.2, "Δyaw {}", c[2] - c0[2]),
             SceneKind::Card => assert!(c[1] - c0[1] < -0.005, "Δy {}", c[1] - c0[1]),
@@ -302,8 +302,12 @@ fn example_commands_run_on_both_hands() {
         let v: serde_json::Value = serde_json::from_str(&text).expect("json");
         let dq: Vec<Vec<f64>> = serde_json::from_value(v["dq"].clone()).expect("dq");
         for kind in [HandKind::World, HandKind::Mujoco] {
-            let mut hand = AnyHand::new(kind, scene, None).expect("hand");
-            let traj = run_commands(&mut hand, kind, &dq);
+            let mut hand = MujocoHands
+                .open(kind, scene, &HandOptions::default())
+                .expect("hand");
+            let t = Instant::now();
+            let traj = run_commands_on(hand.as_mut(), &dq, kind);
+            let seconds = t.elapsed().as_secs_f64();
             assert_eq!(traj.error, None);
             assert_eq!(traj.states.len(), dq.len() + 1);
             eprintln!(
@@ -312,7 +316,7 @@ fn example_commands_run_on_both_hands() {
                 kind.name(),
                 traj.metric[0],
                 traj.metric[dq.len()],
-                1e3 * traj.action_seconds.iter().sum::<f64>() / dq.len() as f64
+                1e3 * seconds / dq.len() as f64
             );
         }
     }

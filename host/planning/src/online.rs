@@ -40,7 +40,7 @@ use dips_exec::problems::contract::{LayoutError, contract_state, from_contract};
 use dips_exec::problems::{AllegroProblem, Mode, ProblemError, ProblemSpec};
 use dips_exec::{
     EpisodeResult, ExecError, ExecSettings, ParticleSummary, PlanRecord, fingertip_distances,
-    hand_state, mode_goal, pose_valid, prior_sequence_for_seed, run_mode, true_hand_state,
+    hand_state, mode_goal, prior_sequence_for_seed, run_mode, true_hand_state,
 };
 use dips_world::hand::Hand;
 use dips_world::kinematics::HandModel;
@@ -599,7 +599,7 @@ pub fn run_online<H: Hand + ?Sized>(
     };
     // Scored on the true pose (a simulated tracker may be noisy); planned on the measured.
     let start = true_hand_state(hand);
-    let mut valid = pose_valid(scene, &hand.true_object_pose());
+    let mut valid = hand.true_object_pose().valid(scene);
     let mut runs = Vec::new();
     let mut executed: Vec<Mode> = Vec::new();
     let mut plans = Vec::new();

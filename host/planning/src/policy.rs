@@ -22,7 +22,7 @@ use crate::{SampleError, sample_trajectories};
 use dips_exec::episode::{EpisodeResult, SCREWDRIVER_SUCCESS_YAW};
 use dips_exec::mode_run::command_deltas;
 use dips_exec::problems::contract::contract_state;
-use dips_exec::{ExecSettings, ModeRun, StepLog, hand_state, pose_valid, true_hand_state};
+use dips_exec::{ExecSettings, ModeRun, StepLog, hand_state, true_hand_state};
 use dips_world::hand::{Hand, HandError};
 use dips_world::scenes::SceneKind;
 
@@ -101,7 +101,7 @@ pub fn run_policy_episode<H: Hand + ?Sized>(
     let start = hand_state(hand);
     // Scored on the true pose (a simulated tracker may be noisy); run on the measured.
     let start_truth = true_hand_state(hand);
-    let mut valid = pose_valid(scene, &hand.true_object_pose());
+    let mut valid = hand.true_object_pose().valid(scene);
     let mut mode_runs = Vec::with_capacity(runs);
     let mut step_s = Vec::new();
     for r in 0..runs {
@@ -123,7 +123,7 @@ pub fn run_policy_episode<H: Hand + ?Sized>(
             }
             command_deltas(hand, &dq)?;
             let after = hand_state(hand);
-            let ok = pose_valid(scene, &hand.true_object_pose());
+            let ok = hand.true_object_pose().valid(scene);
             valid &= ok;
             let o = &after[nq..];
             progress(&format!(

@@ -113,6 +113,19 @@ impl SceneKind {
         self.action_dim() + self.object_dim()
     }
 
+    /// Task validity of an object pose in the world (the screwdriver's frame at its pivot):
+    /// the screwdriver's cap within [`screwdriver::VALID_RADIUS`] of nominal, the card lying
+    /// on the table (centre within [`card::VALID_HEIGHT`] of its resting height). The one
+    /// rule every hand, episode and trajectory is scored with.
+    pub fn pose_valid(self, pose: &Isometry3<f64>) -> bool {
+        match self {
+            SceneKind::Screwdriver => screwdriver::is_valid(&pose.rotation.to_rotation_matrix()),
+            SceneKind::Card => {
+                (pose.translation.vector.z - card::INITIAL_CENTER[2]).abs() <= card::VALID_HEIGHT
+            }
+        }
+    }
+
     /// Hand base pose in the world.
     pub fn hand_base(self) -> Isometry3<f64> {
         let (p, xyzw) = match self {
@@ -251,6 +264,9 @@ pub mod card {
     pub const MASS: f64 = 0.01;
     /// Card centre at rest on the table (Isaac starts it at z = 0.132 and it settles).
     pub const INITIAL_CENTER: [f64; 3] = [0.0, 0.0, 0.130];
+    /// How far (m) the card's centre may leave its resting height and the card still count
+    /// as lying on the table ([`SceneKind::pose_valid`](super::SceneKind::pose_valid)).
+    pub const VALID_HEIGHT: f64 = 5e-3;
     /// Table box centre.
     pub const TABLE_CENTER: [f64; 3] = [0.0, 0.1, 0.1];
     /// Table box half extents (0.4 × 0.4 × 0.05 m).
@@ -368,5 +384,21 @@ mod tests {
         assert!(!screwdriver::is_valid(&screwdriver::rotation(
             0.11, 0.0, 0.0
         )));
+    }
+
+    #[test]
+    fn pose_validity_is_the_task_rule() {
+        let tilted = |roll: f64| {
+            let r = UnitQuaternion::from_rotation_matrix(&screwdriver::rotation(roll, 0.0, 1.0));
+            Isometry3::from_parts(Translation3::new(0.0, 0.0, 1.0), r)
+        };
+        assert!(SceneKind::Screwdriver.pose_valid(&tilted(0.09)));
+        assert!(!SceneKind::Screwdriver.pose_valid(&tilted(0.11)));
+        let [x, y, z] = card::INITIAL_CENTER;
+        let card_at = |dz: f64| Isometry3::translation(x + 0.03, y - 0.05, z + dz);
+        assert!(SceneKind::Card.pose_valid(&card_at(0.0)));
+        assert!(SceneKind::Card.pose_valid(&card_at(-0.004)));
+        assert!(!SceneKind::Card.pose_valid(&card_at(0.006)));
+        assert!(!SceneKind::Card.pose_valid(&card_at(-0.006)));
     }
 }

@@ -30,6 +30,25 @@ pub struct ObjectPose {
     pub coords: [f64; 3],
 }
 
+impl ObjectPose {
+    /// Task validity of this pose in `scene` ([`SceneKind::pose_valid`]).
+    pub fn valid(&self, scene: SceneKind) -> bool {
+        scene.pose_valid(&self.pose)
+    }
+}
+
+/// Joint targets `q` plus a row of the task fingers' joint deltas (4 per task finger, in
+/// `scene`'s task-finger order, `docs/contracts.md` §2); the other fingers keep `q`. A row too
+/// short leaves NaN in the missing entries, which every hand refuses with an error.
+pub fn add_task_deltas(scene: SceneKind, mut q: HandJoints, dq: &[f64]) -> HandJoints {
+    for (i, f) in scene.task_fingers().iter().enumerate() {
+        for (j, t) in q[f.index()].iter_mut().enumerate() {
+            *t += dq.get(4 * i + j).copied().unwrap_or(f64::NAN);
+        }
+    }
+    q
+}
+
 /// What a controller can read from and send to a hand.
 pub trait Hand {
     /// Which hand this is, as `result.json`'s `hand` records it: `"world"` for our

@@ -100,17 +100,14 @@ impl ObjectState {
         }
     }
 
-    /// Task validity: screwdriver cap within 0.02 m of nominal; card still lying on the table
-    /// (centre within 5 mm of its resting height).
+    /// Task validity ([`SceneKind::pose_valid`]): screwdriver cap within 0.02 m of nominal;
+    /// card still lying on the table (centre within 5 mm of its resting height).
     pub fn valid(&self) -> bool {
-        match self {
-            ObjectState::Screwdriver { orientation, .. } => {
-                screwdriver::is_valid(&orientation.to_rotation_matrix())
-            }
-            ObjectState::Card { pose, .. } => {
-                (pose.translation.z - card::INITIAL_CENTER[2]).abs() <= 5e-3
-            }
-        }
+        let scene = match self {
+            ObjectState::Screwdriver { .. } => SceneKind::Screwdriver,
+            ObjectState::Card { .. } => SceneKind::Card,
+        };
+        scene.pose_valid(&self.pose())
     }
 
     /// Apply a world-frame increment: `ω` (screwdriver) or `(δp, ω)` (card).
