@@ -25,7 +25,7 @@ use serde::{Deserialize, Serialize};
 use dips_exec::hand_state;
 use dips_exec::mode_run::command_deltas;
 use dips_report::render;
-use dips_world::hand::{Hand, HandKind, HandOptions, Hands, Recorder};
+use dips_world::hand::{Hand, HandKind, HandOptions, Hands, Recorder, add_task_deltas};
 use dips_world::kinematics::HandModel;
 use dips_world::scenes::SceneKind;
 use dips_world::world::{ContactReport, StepFlag, World, WorldError, WorldParams};
@@ -245,6 +245,17 @@ pub struct Trajectory {
     pub error: Option<String>,
 }
 
+impl Trajectory {
+    /// Set [`Self::metric`] from the state rows: each row's [`task_metric`] against the first.
+    fn fill_metric(&mut self, scene: SceneKind) {
+        self.metric = self
+            .states
+            .iter()
+            .map(|s| task_metric(scene, &self.states[0], s))
+            .collect();
+    }
+}
+
 /// The task metric of a state row (see [`Trajectory::metric`]); `start` is the first row.
 pub fn task_metric(scene: SceneKind, start: &[f64], state: &[f64]) -> f64 {
     let a = scene.action_dim();
@@ -391,16 +402,15 @@ pub fn run_commands_on(hand: &mut dyn Hand, dq: &[Vec<f64>], kind: HandKind) -> 
             .map(|c| -c.phi)
             .fold(0.0, f64::max)
     };
-    let first = hand_state(hand);
     let mut traj = Trajectory {
         scene: scene.name().into(),
         hand: kind,
-        metric: vec![task_metric(scene, &first, &first)],
-        states: vec![first],
+        states: vec![hand_state(hand)],
         valid: vec![hand.object_pose().valid(scene)],
         contacts: vec![Vec::new()],
         max_penetration: vec![penetration(hand)],
         flags: vec![Vec::new()],
+        metric: Vec::new(),
         error: None,
     };
     for (k, row) in dq.iter().enumerate() {
@@ -408,16 +418,14 @@ pub fn run_commands_on(hand: &mut dyn Hand, dq: &[Vec<f64>], kind: HandKind) -> 
             traj.error = Some(format!("action {k}: {e}"));
             break;
         }
-        let state = hand_state(hand);
-        traj.metric
-            .push(task_metric(scene, &traj.states[0], &state));
-        traj.states.push(state);
+        traj.states.push(hand_state(hand));
         traj.valid.push(hand.object_pose().valid(scene));
         traj.contacts
             .push(hand.contact_readings().unwrap_or_default());
         traj.max_penetration.push(penetration(hand));
         traj.flags.push(Vec::new());
     }
+    traj.fill_metric(scene);
     traj
 }
 
@@ -500,12 +508,7 @@ fn run(args: &RunArgs, hands: &dyn Hands) -> Result<(), SimCliError> {
             };
             let mut failure = None;
             for (k, row) in dq.iter().enumerate() {
-                let mut targets = rec.inner().joints();
-                for (i, f) in scene.task_fingers().iter().enumerate() {
-                    for j in 0..4 {
-                        targets[f.index()][j] += row[4 * i + j];
-                    }
-                }
+                let targets = add_task_deltas(scene, rec.inner().joints(), row);
                 match rec.step_world(&targets) {
                     Ok(rep) => {
                         traj.states.push(rec.inner().state());
@@ -527,11 +530,7 @@ fn run(args: &RunArgs, hands: &dyn Hands) -> Result<(), SimCliError> {
         }
     };
     let mut traj = traj;
-    traj.metric = traj
-        .states
-        .iter()
-        .map(|s| task_metric(scene, &traj.states[0], s))
-        .collect();
+    traj.fill_metric(scene);
     write_json(&args.out, &traj)?;
     if let Some((action, source)) = failure {
         return Err(SimCliError::Action { action, source });
