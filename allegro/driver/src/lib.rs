@@ -16,3 +16,9 @@
 pub mod bus;
 pub mod emu;
 pub mod units;
+pub mod controller;
+pub mod filter;
+pub mod gains;
+pub mod gravity;
+pub mod safety;
+pub mod stats;

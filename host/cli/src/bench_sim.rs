@@ -52,7 +52,7 @@ pub struct BenchSimArgs {
 /// Run the benchmark and print its figures.
 pub fn main(args: BenchSimArgs, hands: &dyn Hands) -> anyhow::Result<()> {
     if args.hand != HandKind::World {
-        let timings = compare(args.hand, args.actions.max(1), hands)?;
+        let timings = compare(&args.hand, args.actions.max(1), hands)?;
         let value = serde_json::json!({
             "bench": "sim",
             "hand": args.hand,
@@ -121,14 +121,14 @@ pub fn scripted_targets(
 /// Time `actions` actions (in runs of six from the start state) of each scene and scenario on
 /// `kind` and on our world.
 pub fn compare(
-    kind: HandKind,
+    kind: &HandKind,
     actions: usize,
     hands: &dyn Hands,
 ) -> anyhow::Result<Vec<HandTiming>> {
     let mut out = Vec::new();
     for scene in SceneKind::ALL {
         for manipulate in [false, true] {
-            for k in [kind, HandKind::World] {
+            for k in [kind, &HandKind::World] {
                 let mut times = Vec::new();
                 let mut changes = Vec::new();
                 while times.len() < actions {
@@ -161,7 +161,7 @@ pub fn compare(
                 out.push(HandTiming {
                     scene: scene.name(),
                     scenario: if manipulate { "manipulate" } else { "hold" },
-                    hand: k,
+                    hand: k.clone(),
                     actions: times.len(),
                     median_ms: times[times.len() / 2],
                     p90_ms: at(0.9),

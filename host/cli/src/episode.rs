@@ -142,7 +142,7 @@ pub fn run(args: EpisodeArgs, hands: &dyn Hands) -> anyhow::Result<()> {
     )?;
     let kind = args.hand.kind();
     let mut hand = hands
-        .open(kind, task, &hand_options)
+        .open(&kind, task, &hand_options)
         .with_context(|| format!("--hand {kind}"))?;
     let mut progress = |line: &str| crate::output::note(line);
     let link = if method.searches() {

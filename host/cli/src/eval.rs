@@ -301,7 +301,8 @@ pub fn run(args: EvalArgs, hands: &dyn Hands) -> anyhow::Result<()> {
         hand: args
             .hand
             .hand
-            .or(given.map(|e| e.episode.hand))
+            .clone()
+            .or(given.map(|e| e.episode.hand.clone()))
             .unwrap_or_default(),
         tracker_noise: match (&args.hand.noise_position, &args.hand.noise_rotation, given) {
             (None, None, Some(e)) => e.episode.tracker_noise,

@@ -40,7 +40,7 @@ pub fn parse_hand(s: &str) -> Result<HandKind, String> {
 impl HandArgs {
     /// The hand (default: our world).
     pub fn kind(&self) -> HandKind {
-        self.hand.unwrap_or_default()
+        self.hand.clone().unwrap_or_default()
     }
 
     /// The tracker noise of the flags, `None` when both are 0 or absent.

@@ -66,17 +66,17 @@ impl Command {
             Command::Episode(a) => Some(a.hand.kind()),
             // Without `--hand`, a protocol's hand (an unreadable protocol fails later, with
             // its own message).
-            Command::Eval(a) => a.hand.hand.or_else(|| {
+            Command::Eval(a) => a.hand.hand.clone().or_else(|| {
                 let file = a.protocol.as_deref()?;
                 let p = dips_eval::protocol::ProtocolFile::read(file).ok()?;
                 Some(p.protocol.eval.episode.hand)
             }),
             Command::Sim(a) => match &a.command {
-                sim::SimCommand::Run(r) => Some(r.hand),
+                sim::SimCommand::Run(r) => Some(r.hand.clone()),
                 sim::SimCommand::Render(_) => None,
             },
             Command::Bench(a) => match &a.command {
-                bench::BenchCommand::Sim(b) => Some(b.hand),
+                bench::BenchCommand::Sim(b) => Some(b.hand.clone()),
                 _ => None,
             },
             _ => None,
@@ -96,7 +96,7 @@ pub fn main() -> anyhow::Result<()> {
 /// delegated to the binary that has it.
 pub fn main_with(hands: &dyn Hands) -> anyhow::Result<()> {
     let cli = Cli::parse();
-    if let Some(kind) = cli.command.hand().filter(|&k| !hands.has(k)) {
+    if let Some(kind) = cli.command.hand().filter(|k| !hands.has(k)) {
         return hands::delegate(kind);
     }
     match cli.command {

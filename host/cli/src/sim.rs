@@ -433,7 +433,7 @@ pub fn run_commands_on(hand: &mut dyn Hand, dq: &[Vec<f64>], kind: HandKind) -> 
 fn run_on(args: &RunArgs, hands: &dyn Hands) -> Result<(), SimCliError> {
     let scene = parse_scene(&args.scene)?;
     let dq = load_commands(&args.commands, scene)?;
-    let kind = args.hand;
+    let kind = args.hand.clone();
     if args.hand_model.is_some() || args.log.is_some() {
         return Err(anyhow::anyhow!(
             "--hand-model and --log are for our world; --hand {kind} uses the built-in Allegro v4"
@@ -447,9 +447,9 @@ fn run_on(args: &RunArgs, hands: &dyn Hands) -> Result<(), SimCliError> {
         seed: args.seed,
     };
     let mut hand = hands
-        .open(kind, scene, &options)
+        .open(&kind, scene, &options)
         .map_err(|e| anyhow::Error::from(e).context(format!("--hand {kind}")))?;
-    let traj = run_commands_on(&mut *hand, &dq, kind);
+    let traj = run_commands_on(&mut *hand, &dq, kind.clone());
     write_json(&args.out, &traj)?;
     if let Some(e) = &traj.error {
         return Err(anyhow::anyhow!("{e} (the trajectory up to it was written)").into());

@@ -298,11 +298,11 @@ fn datagen(e: &DatagenError) -> Option<String> {
 /// `--hand`'s words for a name that is not a hand (a hand description file is `--hand-model`).
 pub fn unknown_hand(e: &UnknownHand) -> String {
     match e {
-        UnknownHand::Name(_) => e.to_string(),
+        UnknownHand::Name(_) | UnknownHand::Allegro(_) => e.to_string(),
         UnknownHand::File(name) => format!(
             "`{name}` is not a hand (allowed: {}); a hand description file is `--hand-model \
              FILE`",
-            dips_world::hand::HandKind::ALL.map(|k| k.name()).join(", ")
+            dips_world::hand::HandKind::NAMES.join(", ")
         ),
     }
 }

@@ -219,7 +219,7 @@ fn run_episode(
         let exec = settings.exec_settings()?;
         // Opened on this worker thread: a hand need not be `Send`.
         let mut hand = hands.open(
-            settings.hand,
+            &settings.hand,
             settings.task,
             &HandOptions {
                 noise: settings.tracker_noise,
@@ -298,7 +298,7 @@ pub fn run_eval_on(
     // world) fails here, before the directory is claimed.
     hands
         .open(
-            settings.hand,
+            &settings.hand,
             settings.task,
             &HandOptions {
                 noise: settings.tracker_noise,
@@ -306,7 +306,7 @@ pub fn run_eval_on(
             },
         )
         .map_err(|source| RunError::Hand {
-            hand: settings.hand,
+            hand: settings.hand.clone(),
             source,
         })?;
     claim_dir(dir, settings)?;

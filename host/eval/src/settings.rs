@@ -408,7 +408,7 @@ impl EvalSettings {
             beta: self.online.search.beta,
             models: std::path::absolute(&self.models).unwrap_or_else(|_| self.models.clone()),
             engine: self.engine,
-            hand: self.hand,
+            hand: self.hand.clone(),
             tracker_noise: self.tracker_noise,
             card_goals: self.card_goals,
             stop_rule: self.online.stop_rule,

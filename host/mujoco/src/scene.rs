@@ -13,13 +13,7 @@ use nalgebra::{Isometry3, UnitQuaternion, Vector3};
 
 use crate::MujocoError;
 
-/// Link masses (kg) of an index/middle/ring finger, proximal to distal (the distal entry
-/// includes the fingertip). Our hand file has no masses; these are of the order of the
-/// Allegro v4 URDF's (`docs/mujoco.md`).
-pub const FINGER_LINK_MASSES: [f64; 4] = [0.0119, 0.065, 0.0355, 0.0264];
-
-/// Link masses (kg) of the thumb, proximal to distal (distal with its tip).
-pub const THUMB_LINK_MASSES: [f64; 4] = [0.0176, 0.0119, 0.038, 0.0724];
+pub use dips_world::kinematics::{FINGER_LINK_MASSES, THUMB_LINK_MASSES};
 
 /// Radius (m) of the solid rod each link's inertia is computed for.
 pub const LINK_RADIUS: f64 = 0.012;

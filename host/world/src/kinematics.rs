@@ -177,6 +177,15 @@ pub struct FingerFrames {
     pub tip_center: Point3<f64>,
 }
 
+/// Link masses (kg) of an index/middle/ring finger, proximal to distal (the distal entry
+/// includes the fingertip). Our hand file has no masses; these are of the order of the
+/// Allegro v4 URDF's (`docs/mujoco.md`). The MuJoCo scene and the Allegro driver's gravity
+/// compensation use them.
+pub const FINGER_LINK_MASSES: [f64; 4] = [0.0119, 0.065, 0.0355, 0.0264];
+
+/// Link masses (kg) of the thumb, proximal to distal (distal with its tip).
+pub const THUMB_LINK_MASSES: [f64; 4] = [0.0176, 0.0119, 0.038, 0.0724];
+
 /// The hand: four fingers and the fingertip sphere radius.
 #[derive(Debug, Clone, PartialEq)]
 pub struct HandModel {

@@ -1,46 +1,76 @@
 //! Which hand executes the actions ([`HandKind`]), and the factory that opens one
 //! ([`Hands`]): `dips episode`, `dips eval`, `dips sim run` and `dips bench sim` take
-//! `--hand world|mujoco` and open the hand through a [`Hands`]. The `dips` binary has only
-//! our world ([`WorldHands`]); `dips-mujoco` (`host/mujoco`, a workspace of its own) is the
-//! same command line with the MuJoCo hand registered (docs/mujoco.md).
+//! `--hand world|mujoco|allegro:…` and open the hand through a [`Hands`]. [`WorldHands`] has
+//! only our world; the `dips` binary adds the Allegro driver (`dips-allegro`), and
+//! `dips-mujoco` (`host/mujoco`, a workspace of its own) is the same command line with the
+//! MuJoCo hand registered (docs/mujoco.md).
 
 use std::fmt;
 use std::str::FromStr;
 
-use serde::{Deserialize, Serialize};
+use serde::{Deserialize, Deserializer, Serialize, Serializer};
 
+use crate::hand::allegro::{AllegroOptions, BadAllegro};
 use crate::hand::{Hand, HandError};
 use crate::scenes::SceneKind;
 use crate::world::World;
 
 /// Which hand executes the actions. The planner, the models and CSVTO's internal model are
-/// the same for every kind: they model our world.
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Hash, Serialize, Deserialize)]
-#[serde(rename_all = "lowercase")]
+/// the same for every kind: they model our world. Files write a hand as its command-line
+/// form (`world`, `mujoco`, `allegro:emulated,gains=paper`).
+#[derive(Debug, Clone, Default, PartialEq, Eq, Hash)]
 pub enum HandKind {
     /// Our quasi-static world ([`World`]).
     #[default]
     World,
     /// MuJoCo 3.17 with the 333 Hz host PD (`dips_mujoco::MujocoHand`).
     Mujoco,
+    /// The Allegro Hand V4 through its CAN driver (`dips_allegro`): a real hand on a
+    /// SocketCAN interface, or the emulated one.
+    Allegro(AllegroOptions),
 }
 
 impl HandKind {
-    /// Every kind, in the order the help lists them.
-    pub const ALL: [HandKind; 2] = [HandKind::World, HandKind::Mujoco];
+    /// Every kind's name, in the order the help lists them.
+    pub const NAMES: [&'static str; 3] = ["world", "mujoco", "allegro:IFACE"];
 
-    /// The name on the command line and in `result.json` / `eval.json`.
-    pub fn name(self) -> &'static str {
+    /// The kind's name (`world`, `mujoco`, `allegro`), as `result.json`'s `hand` records it.
+    pub fn name(&self) -> &'static str {
         match self {
             HandKind::World => "world",
             HandKind::Mujoco => "mujoco",
+            HandKind::Allegro(_) => "allegro",
+        }
+    }
+
+    /// The Allegro hand's options, for that kind.
+    pub fn allegro(&self) -> Option<&AllegroOptions> {
+        match self {
+            HandKind::Allegro(o) => Some(o),
+            _ => None,
         }
     }
 }
 
 impl fmt::Display for HandKind {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        f.write_str(self.name())
+        match self {
+            HandKind::Allegro(o) => write!(f, "allegro:{o}"),
+            other => f.write_str(other.name()),
+        }
+    }
+}
+
+impl Serialize for HandKind {
+    fn serialize<S: Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        s.collect_str(self)
+    }
+}
+
+impl<'de> Deserialize<'de> for HandKind {
+    fn deserialize<D: Deserializer<'de>>(d: D) -> Result<HandKind, D::Error> {
+        let s = String::deserialize(d)?;
+        s.parse().map_err(serde::de::Error::custom)
     }
 }
 
@@ -56,19 +86,28 @@ pub enum UnknownHand {
         allowed = allowed_hands()
     )]
     File(String),
+    /// An `allegro:…` spec that does not parse.
+    #[error("hand allegro: {0}")]
+    Allegro(#[from] BadAllegro),
 }
 
-/// The hands' names, as the errors list them (`world, mujoco`).
+/// The hands' names, as the errors list them (`world, mujoco, allegro:IFACE`).
 fn allowed_hands() -> String {
-    HandKind::ALL.map(HandKind::name).join(", ")
+    HandKind::NAMES.join(", ")
 }
 
 impl FromStr for HandKind {
     type Err = UnknownHand;
 
     fn from_str(s: &str) -> Result<HandKind, UnknownHand> {
-        if let Some(k) = HandKind::ALL.into_iter().find(|k| k.name() == s) {
-            return Ok(k);
+        match s {
+            "world" => return Ok(HandKind::World),
+            "mujoco" => return Ok(HandKind::Mujoco),
+            "allegro" => return Err(BadAllegro::NoBus(s.to_string()).into()),
+            _ => {}
+        }
+        if let Some(spec) = s.strip_prefix("allegro:") {
+            return Ok(HandKind::Allegro(AllegroOptions::parse(spec)?));
         }
         // `dips sim run --hand FILE` was the hand description before `--hand` named the hand.
         if s.contains('/') || s.contains('\\') || s.ends_with(".json") {
@@ -145,11 +184,11 @@ pub struct HandOptions {
 /// --jobs`): each thread opens its own hands.
 pub trait Hands: Sync {
     /// Whether this factory can open `kind`.
-    fn has(&self, kind: HandKind) -> bool;
+    fn has(&self, kind: &HandKind) -> bool;
     /// A fresh hand of `kind` for `scene`.
     fn open(
         &self,
-        kind: HandKind,
+        kind: &HandKind,
         scene: SceneKind,
         options: &HandOptions,
     ) -> Result<Box<dyn Hand>, HandError>;
@@ -170,19 +209,19 @@ pub fn open_world(scene: SceneKind, options: &HandOptions) -> Result<Box<dyn Han
 }
 
 impl Hands for WorldHands {
-    fn has(&self, kind: HandKind) -> bool {
-        kind == HandKind::World
+    fn has(&self, kind: &HandKind) -> bool {
+        *kind == HandKind::World
     }
 
     fn open(
         &self,
-        kind: HandKind,
+        kind: &HandKind,
         scene: SceneKind,
         options: &HandOptions,
     ) -> Result<Box<dyn Hand>, HandError> {
         match kind {
             HandKind::World => open_world(scene, options),
-            other => Err(HandError::NotInBinary { kind: other }),
+            other => Err(HandError::NotInBinary { kind: other.clone() }),
         }
     }
 }
@@ -193,36 +232,39 @@ mod tests {
 
     #[test]
     fn names_round_trip_and_unknown_ones_list_the_allowed() {
-        for k in HandKind::ALL {
-            assert_eq!(k.name().parse::<HandKind>(), Ok(k));
-            assert_eq!(k.to_string(), k.name());
+        for name in ["world", "mujoco", "allegro:emulated", "allegro:can0,pose=file:p.jsonl"] {
+            let k: HandKind = name.parse().unwrap();
+            assert_eq!(k.to_string(), name);
             let json = serde_json::to_string(&k).unwrap();
-            assert_eq!(json, format!("\"{}\"", k.name()));
+            assert_eq!(json, format!("\"{name}\""));
             assert_eq!(serde_json::from_str::<HandKind>(&json).unwrap(), k);
         }
+        assert_eq!("allegro:emulated".parse::<HandKind>().unwrap().name(), "allegro");
         let e = "isaac".parse::<HandKind>().unwrap_err().to_string();
-        assert_eq!(e, "unknown hand `isaac` (allowed: world, mujoco)");
+        assert_eq!(e, "unknown hand `isaac` (allowed: world, mujoco, allegro:IFACE)");
+        let e = "allegro".parse::<HandKind>().unwrap_err().to_string();
+        assert!(e.starts_with("hand allegro: `allegro`: name the bus"), "{e}");
         let e = "host/data/allegro_v4.json"
             .parse::<HandKind>()
             .unwrap_err()
             .to_string();
         assert_eq!(
             e,
-            "`host/data/allegro_v4.json` is not a hand (allowed: world, mujoco); a hand \
-             description file is the hand model"
+            "`host/data/allegro_v4.json` is not a hand (allowed: world, mujoco, allegro:IFACE); \
+             a hand description file is the hand model"
         );
     }
 
     #[test]
     fn the_world_factory_opens_our_world_only() {
         let h = WorldHands
-            .open(HandKind::World, SceneKind::Card, &HandOptions::default())
+            .open(&HandKind::World, SceneKind::Card, &HandOptions::default())
             .unwrap();
         assert_eq!(h.name(), "world");
-        assert!(WorldHands.has(HandKind::World) && !WorldHands.has(HandKind::Mujoco));
+        assert!(WorldHands.has(&HandKind::World) && !WorldHands.has(&HandKind::Mujoco));
         assert!(
             WorldHands
-                .open(HandKind::Mujoco, SceneKind::Card, &HandOptions::default())
+                .open(&HandKind::Mujoco, SceneKind::Card, &HandOptions::default())
                 .is_err()
         );
         let noisy = HandOptions {
@@ -230,7 +272,7 @@ mod tests {
             seed: 1,
         };
         let e = WorldHands
-            .open(HandKind::World, SceneKind::Card, &noisy)
+            .open(&HandKind::World, SceneKind::Card, &noisy)
             .err()
             .unwrap();
         assert!(

@@ -15,7 +15,9 @@ use crate::kinematics::{HandJoints, HandModel};
 use crate::scenes::SceneKind;
 use crate::world::{ObjectState, StepReport, World, WorldError, WorldParams};
 
+pub mod allegro;
 mod kind;
+pub use allegro::{AllegroBus, AllegroOptions, BadAllegro, EmulatorFault, GainsChoice, PoseSource};
 pub use kind::{
     BadNoise, HandKind, HandOptions, Hands, NoiseAxis, TrackerNoise, UnknownHand, WorldHands,
     open_world,
@@ -52,7 +54,8 @@ pub fn add_task_deltas(scene: SceneKind, mut q: HandJoints, dq: &[f64]) -> HandJ
 /// What a controller can read from and send to a hand.
 pub trait Hand {
     /// Which hand this is, as `result.json`'s `hand` records it: `"world"` for our
-    /// quasi-static world, `"mujoco"` for the MuJoCo hand (`host/mujoco`).
+    /// quasi-static world, `"mujoco"` for the MuJoCo hand (`host/mujoco`), `"allegro"` for
+    /// the Allegro driver (`dips-allegro`).
     fn name(&self) -> &'static str;
     /// The task scene.
     fn scene(&self) -> SceneKind;
