@@ -22,3 +22,5 @@ pub mod gains;
 pub mod gravity;
 pub mod safety;
 pub mod stats;
+pub mod pose;
+pub mod hand;

@@ -9,7 +9,15 @@ use std::path::{Path, PathBuf};
 use anyhow::Context;
 use clap::Args;
 
-use dips_world::hand::{HandKind, HandOptions, TrackerNoise};
+use dips_allegro::emu::{JointModel, Plant, PlantError};
+use dips_allegro::hand::{AllegroHand, PlantFactory};
+use dips_world::hand::{
+    AllegroOptions, EmulatedPlant, Hand, HandError, HandKind, HandOptions, Hands, TrackerNoise,
+    open_world,
+};
+use dips_world::kinematics::HandJoints;
+use dips_world::scenes::SceneKind;
+use dips_world::world::World;
 
 /// The binary that has the MuJoCo hand.
 pub const MUJOCO_BINARY: &str = "dips-mujoco";
@@ -58,6 +66,74 @@ impl HandArgs {
             seed,
         })
     }
+}
+
+/// The emulated Allegro hand's plant in this binary: the joint model, with the object moved by
+/// our quasi-static world (`dips_allegro::emu::joint_model`).
+pub fn joint_model_plant(scene: SceneKind, start: HandJoints) -> Result<Box<dyn Plant>, PlantError> {
+    let mut world = World::new(scene);
+    world.set_joints(&start);
+    Ok(Box::new(JointModel::new(scene, start).with_world(world)))
+}
+
+/// Open the Allegro hand of `options` with `plant` behind an emulated bus; tracker noise is
+/// refused (a real tracker has its own).
+pub fn open_allegro(
+    options: &AllegroOptions,
+    scene: SceneKind,
+    hand_options: &HandOptions,
+    plant: PlantFactory<'_>,
+) -> Result<Box<dyn Hand>, HandError> {
+    if hand_options.noise.is_some() {
+        return Err(dips_allegro::hand::OpenError::Noise.into());
+    }
+    Ok(Box::new(AllegroHand::open(options, scene, plant)?))
+}
+
+/// The hands of the `dips` binary: our world, and the Allegro driver with its emulated hand on
+/// the joint model ([`joint_model_plant`]).
+#[derive(Debug, Clone, Copy, Default)]
+pub struct DipsHands;
+
+impl Hands for DipsHands {
+    fn has(&self, kind: &HandKind) -> bool {
+        match kind {
+            HandKind::World => true,
+            HandKind::Allegro(a) => a.plant == EmulatedPlant::JointModel,
+            HandKind::Mujoco => false,
+        }
+    }
+
+    fn open(
+        &self,
+        kind: &HandKind,
+        scene: SceneKind,
+        options: &HandOptions,
+    ) -> Result<Box<dyn Hand>, HandError> {
+        match kind {
+            HandKind::World => open_world(scene, options),
+            HandKind::Allegro(a) => open_allegro(a, scene, options, self.allegro_plant(a.plant)),
+            other => Err(HandError::NotInBinary {
+                kind: other.clone(),
+            }),
+        }
+    }
+
+}
+
+impl CliHands for DipsHands {
+    /// The joint model for either: `plant=mujoco` never gets here, [`DipsHands::has`] sends
+    /// it to `dips-mujoco`.
+    fn allegro_plant(&self, _plant: EmulatedPlant) -> PlantFactory<'_> {
+        &joint_model_plant
+    }
+}
+
+/// The hands a `dips` command line opens: a [`Hands`] factory that also gives the plant the
+/// emulated Allegro hand moves with (`dips hand` opens the driver without a [`Hand`]).
+pub trait CliHands: Hands {
+    /// The factory of `plant`, for an Allegro hand [`Hands::has`] accepts.
+    fn allegro_plant(&self, plant: EmulatedPlant) -> PlantFactory<'_>;
 }
 
 /// Where the `dips-mujoco` binary is: next to `exe`, else on `path` (`PATH`'s value).

@@ -1,7 +1,9 @@
 //! The `dips` command line (`docs/contracts.md` §5). Each command group lives in its own module.
 
 use clap::{Parser, Subcommand};
-use dips_world::hand::{HandKind, Hands, WorldHands};
+use dips_world::hand::HandKind;
+
+use crate::hands::CliHands;
 
 pub mod batch;
 pub mod bench;
@@ -13,6 +15,7 @@ pub mod bench_sim;
 pub mod datagen;
 pub mod episode;
 pub mod eval;
+pub mod hand_cmd;
 pub mod hands;
 pub mod model;
 pub mod model_quality;
@@ -45,6 +48,9 @@ pub enum Command {
     /// One closed-loop episode, executed on the quasi-static world or (`--hand mujoco`) the
     /// MuJoCo hand; writes DIR/result.json.
     Episode(episode::EpisodeArgs),
+    /// Bring-up of the Allegro hand: info, live joints, a slow move home (a real bus or the
+    /// emulated hand).
+    Hand(hand_cmd::HandArgs),
     /// The paper's experiments: many episodes per method (resumable, sharded), then
     /// results.json, results.md and box plots.
     Eval(Box<eval::EvalArgs>),
@@ -64,6 +70,7 @@ impl Command {
     pub fn hand(&self) -> Option<HandKind> {
         match self {
             Command::Episode(a) => Some(a.hand.kind()),
+            Command::Hand(a) => Some(HandKind::Allegro(a.options().ok()?)),
             // Without `--hand`, a protocol's hand (an unreadable protocol fails later, with
             // its own message).
             Command::Eval(a) => a.hand.hand.clone().or_else(|| {
@@ -84,17 +91,17 @@ impl Command {
     }
 }
 
-/// Parse the process arguments and run the command with our world as the only hand; a
-/// command for another hand (`--hand mujoco`) runs in the `dips-mujoco` binary instead
-/// ([`hands::delegate`]).
+/// Parse the process arguments and run the command with our world and the Allegro driver
+/// (its emulated hand on the joint model, [`hands::DipsHands`]); a command for another hand
+/// (`--hand mujoco`) runs in the `dips-mujoco` binary instead ([`hands::delegate`]).
 pub fn main() -> anyhow::Result<()> {
-    main_with(&WorldHands)
+    main_with(&hands::DipsHands)
 }
 
 /// Parse the process arguments and run the command, opening the hands that execute actions
 /// with `hands` (`dips-mujoco` registers the MuJoCo hand here). A hand `hands` lacks is
 /// delegated to the binary that has it.
-pub fn main_with(hands: &dyn Hands) -> anyhow::Result<()> {
+pub fn main_with(hands: &dyn CliHands) -> anyhow::Result<()> {
     let cli = Cli::parse();
     if let Some(kind) = cli.command.hand().filter(|k| !hands.has(k)) {
         return hands::delegate(kind);
@@ -105,6 +112,7 @@ pub fn main_with(hands: &dyn Hands) -> anyhow::Result<()> {
         Command::Sim(args) => sim::main(args, hands),
         Command::Episode(args) => episode::run(args, hands),
         Command::Eval(args) => eval::run(*args, hands),
+        Command::Hand(args) => hand_cmd::run(args, hands),
         Command::Plan(args) => plan::run(args),
         Command::Render(args) => render::run(args),
         Command::Datagen(args) => datagen::run(args),

@@ -290,6 +290,11 @@ pub struct EpisodeResult {
     /// files written before it was recorded.
     #[serde(skip_serializing_if = "Press::is_light")]
     pub press: Press,
+    /// What the hand measured of itself over the episode ([`Hand::report`]): for the Allegro
+    /// driver, its options, the loop's period statistics and the frames counted. Left out for
+    /// simulated hands.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub hand_report: Option<serde_json::Value>,
 }
 
 /// One planning call of an online method (`result.json`'s `plans`).
@@ -484,7 +489,7 @@ pub fn run_episode_observed<H: Hand + ?Sized>(
     let mut result = EpisodeResult::assemble(
         task, method, seed, &start, &end, runs, planning_s, step_s, valid,
     );
-    result.record_execution(hand.name(), settings);
+    result.record_execution(hand.name(), hand.report(), settings);
     Ok(result)
 }
 
@@ -537,14 +542,22 @@ impl EpisodeResult {
             pose_estimate: PoseEstimate::Tracker,
             regrasp_guard: RegraspGuard::Off,
             press: Press::Light,
+            hand_report: None,
         }
     }
 
-    /// Record what executed the episode: the hand's name ([`Hand::name`]) and the execution
+    /// Record what executed the episode: the hand's name ([`Hand::name`]) and what it measured
+    /// of itself ([`Hand::report`]: a driver's loop period and frame counts), and the execution
     /// settings that reach `result.json` (the card's goals, the CSVTO profile, the pose
     /// estimate, the regrasp guard, the press).
-    pub fn record_execution(&mut self, hand: &'static str, settings: &ExecSettings) {
+    pub fn record_execution(
+        &mut self,
+        hand: &'static str,
+        hand_report: Option<serde_json::Value>,
+        settings: &ExecSettings,
+    ) {
         self.hand = hand;
+        self.hand_report = hand_report;
         self.card_goals = settings.card_goals;
         self.exec_profile = settings.profile;
         self.pose_estimate = settings.pose_estimate;

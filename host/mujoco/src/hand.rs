@@ -387,6 +387,45 @@ impl MujocoHand {
             .sum()
     }
 
+    /// Advance `dt` seconds (rounded to whole MuJoCo steps, at least one) with the finger
+    /// joints driven by `torques` (N·m, bus order) and no PD of ours: what the emulated
+    /// Allegro hand does under the torques its driver sends. Gravity acts; the driver's own
+    /// gravity compensation, when on, is in `torques`. The tracker's pose is refreshed after.
+    pub fn step_torques(&mut self, torques: &HandJoints, dt: f64) -> Result<(), MujocoError> {
+        if let Some((index, value)) = torques
+            .iter()
+            .flatten()
+            .enumerate()
+            .find(|(_, v)| !v.is_finite())
+        {
+            return Err(MujocoError::Target {
+                index,
+                value: *value,
+            });
+        }
+        let steps = (dt / self.params.timestep()).round().max(1.0) as usize;
+        let warnings = self.warnings();
+        {
+            let applied = self.data.qfrc_applied_mut();
+            for f in 0..4 {
+                for j in 0..4 {
+                    applied[self.layout.dof[f][j]] = torques[f][j];
+                }
+            }
+        }
+        for _ in 0..steps {
+            self.data.step();
+        }
+        if self.warnings() != warnings {
+            return Err(MujocoError::Diverged {
+                time: self.data.time(),
+            });
+        }
+        self.data.forward();
+        self.observe();
+        Ok(())
+    }
+
     /// Run one action towards `targets` (clamped to the joint limits): the PD reference moves
     /// linearly from the last target over the action. On divergence the state is left as
     /// MuJoCo reset it and the error says so.

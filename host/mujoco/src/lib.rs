@@ -8,6 +8,7 @@
 
 pub mod hand;
 pub mod locate;
+pub mod plant;
 pub mod run;
 pub mod scene;
 

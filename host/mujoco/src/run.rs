@@ -6,7 +6,8 @@
 
 use std::time::Instant;
 
-use dips_world::hand::{Hand, HandError, HandOptions, Hands, open_world};
+use dips_cli::hands::{CliHands, open_allegro};
+use dips_world::hand::{EmulatedPlant, Hand, HandError, HandOptions, Hands, open_world};
 use dips_world::scenes::SceneKind;
 use serde::Serialize;
 
@@ -22,18 +23,19 @@ pub use dips_world::hand::HandKind;
 pub struct MujocoHands;
 
 impl Hands for MujocoHands {
-    fn has(&self, _kind: HandKind) -> bool {
+    fn has(&self, _kind: &HandKind) -> bool {
         true
     }
 
     fn open(
         &self,
-        kind: HandKind,
+        kind: &HandKind,
         scene: SceneKind,
         options: &HandOptions,
     ) -> Result<Box<dyn Hand>, HandError> {
         match kind {
             HandKind::World => open_world(scene, options),
+            HandKind::Allegro(a) => open_allegro(a, scene, options, self.allegro_plant(a.plant)),
             HandKind::Mujoco => {
                 let noise = options.noise.map(|n| PoseNoise {
                     position: n.position,
@@ -53,6 +55,16 @@ impl Hands for MujocoHands {
                 })?;
                 Ok(Box::new(hand))
             }
+        }
+    }
+}
+
+impl CliHands for MujocoHands {
+    /// Both plants: the joint model and MuJoCo.
+    fn allegro_plant(&self, plant: EmulatedPlant) -> dips_allegro::hand::PlantFactory<'_> {
+        match plant {
+            EmulatedPlant::JointModel => &dips_cli::hands::joint_model_plant,
+            EmulatedPlant::Mujoco => &crate::plant::mujoco_plant,
         }
     }
 }

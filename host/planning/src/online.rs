@@ -582,7 +582,7 @@ pub fn run_online<H: Hand + ?Sized>(
             runs,
             progress,
         )?;
-        result.record_execution(hand_name, exec);
+        result.record_execution(hand_name, hand.report(), exec);
         return Ok(result);
     }
     let mut rng = KernelRng::seed_from_u64(seed);
@@ -726,7 +726,7 @@ pub fn run_online<H: Hand + ?Sized>(
         valid,
     );
     result.plans = plans;
-    result.record_execution(hand_name, exec);
+    result.record_execution(hand_name, hand.report(), exec);
     Ok(result)
 }
 

@@ -6,6 +6,7 @@ use std::time::Duration;
 
 use dips_allegro_protocol::CanFrame;
 
+pub mod echo;
 pub mod memory;
 #[cfg(target_os = "linux")]
 pub mod socketcan;

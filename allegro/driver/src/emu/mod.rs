@@ -1,4 +1,5 @@
-//! The emulated hand: [`Emulator`] answers the V4 protocol on a [`CanBus`] as the hand's
+//! The emulated hand: [`Emulator`] answers the V4 protocol on a
+//! [`CanBus`](crate::bus::CanBus) as the hand's
 //! firmware does (start-up requests, servo on/off, pose streaming at the `SET_PERIOD` rate,
 //! SET_TORQUE applied while the servo is on, hand info, serial, temperatures) and moves its
 //! joints with a [`Plant`] under the torques it receives. Encoder readings are quantised to
@@ -8,13 +9,24 @@
 //! Plants: [`joint_model::JointModel`] (the main workspace: each joint a documented
 //! second-order model, with the object moved by our quasi-static world from the joints'
 //! positions) and, in `host/mujoco`, MuJoCo's dynamics of the same scene actuated by torque.
+//!
+//! Modules: [`firmware`] (the protocol state machine, its configuration and counters),
+//! [`runner`] (its real-time thread and the handle), [`joint_model`] (the joint-model plant),
+//! and [`world_link`].
 
 use std::time::Duration;
 
 use dips_world::hand::ObjectPose;
 use dips_world::kinematics::HandJoints;
 
-use crate::bus::CanBus;
+pub mod firmware;
+pub mod joint_model;
+pub mod runner;
+mod world_link;
+
+pub use firmware::{EmulatorConfig, EmulatorStats, HOT_TEMPERATURE_C, WIRE_TIME_S};
+pub use joint_model::{JointModel, JointModelParams};
+pub use runner::{Emulator, EmulatorEnd, EmulatorHandle, EmulatorReport};
 
 /// What moves the emulated joints: torques in, positions out, in real time steps.
 pub trait Plant: Send {
@@ -38,18 +50,7 @@ pub struct PlantError {
     pub message: String,
 }
 
-/// A fault the emulator injects (`fault=` in `allegro:emulated,fault=...`).
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub enum Fault {
-    /// From `at` (seconds after the servo first comes on) the hand sends nothing more.
-    SilenceAt(Duration),
-    /// Malformed frames (unknown ids, wrong lengths, extended ids, stray remote frames) are
-    /// interleaved with every pose set.
-    Garbage,
-    /// From `at` the joints' temperatures read above any sane limit and the status byte's
-    /// high-temperature bit is set.
-    HotAt(Duration),
-}
-
-#[doc(hidden)]
-pub fn _interface_check(_: &dyn CanBus) {}
+/// A fault the emulator injects: the type `--hand allegro:emulated,fault=…` parses into
+/// (`silence@2`, `garbage`, `hot@3`; its one owner is `dips_world`, which parses and prints
+/// it).
+pub use dips_world::hand::EmulatorFault as Fault;

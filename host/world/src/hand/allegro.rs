@@ -18,6 +18,16 @@ pub enum AllegroBus {
     Interface(String),
 }
 
+/// What moves the emulated hand's joints.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Hash)]
+pub enum EmulatedPlant {
+    /// The joint model with our quasi-static world moving the object (the `dips` binary).
+    #[default]
+    JointModel,
+    /// MuJoCo's dynamics of the hand and object (the `dips-mujoco` binary).
+    Mujoco,
+}
+
 /// The PD gains to run.
 #[derive(Debug, Clone, PartialEq, Eq, Hash)]
 pub enum GainsChoice {
@@ -64,6 +74,8 @@ pub struct AllegroOptions {
     pub pose: Option<PoseSource>,
     /// Faults to inject (emulated only).
     pub faults: Vec<EmulatorFault>,
+    /// The emulated hand's plant (`plant=joint-model|mujoco`; emulated and dry runs only).
+    pub plant: EmulatedPlant,
     /// Print every frame the driver sends instead of opening the bus: the driver runs
     /// against the emulated hand, and nothing reaches a real bus.
     pub dry_run: bool,
@@ -75,13 +87,13 @@ pub enum BadAllegro {
     /// No interface named.
     #[error(
         "`{0}`: name the bus, `allegro:emulated` or `allegro:IFACE` (e.g. allegro:can0), then \
-         options gains=vendor|paper|FILE, pose=file:PATH|udp:ADDR:PORT|truth, fault=silence@T|garbage|hot@T, dry-run"
+         options gains=vendor|paper|FILE, pose=file:PATH|udp:ADDR:PORT|truth, fault=silence@T|garbage|hot@T, plant=joint-model|mujoco, dry-run"
     )]
     NoBus(String),
     /// An option this spec does not have.
     #[error(
         "`{0}` is not an allegro option (allowed: gains=vendor|paper|FILE, \
-         pose=file:PATH|udp:ADDR:PORT|truth, fault=silence@T|garbage|hot@T, dry-run)"
+         pose=file:PATH|udp:ADDR:PORT|truth, fault=silence@T|garbage|hot@T, plant=joint-model|mujoco, dry-run)"
     )]
     UnknownOption(String),
     /// A pose source that does not parse.
@@ -170,6 +182,7 @@ impl AllegroOptions {
             gains: GainsChoice::Vendor,
             pose: None,
             faults: Vec::new(),
+            plant: EmulatedPlant::JointModel,
             dry_run: false,
         };
         for part in parts {
@@ -181,6 +194,8 @@ impl AllegroOptions {
                 }
                 Some(("pose", p)) => o.pose = Some(p.parse()?),
                 Some(("fault", f)) => o.faults.push(f.parse()?),
+                Some(("plant", "joint-model")) => o.plant = EmulatedPlant::JointModel,
+                Some(("plant", "mujoco")) => o.plant = EmulatedPlant::Mujoco,
                 None if part == "dry-run" => o.dry_run = true,
                 _ => return Err(BadAllegro::UnknownOption(part.to_string())),
             }
@@ -189,13 +204,10 @@ impl AllegroOptions {
             if let Some(f) = o.faults.first() {
                 return Err(BadAllegro::EmulatedOnly(format!("fault={f}"), "injected faults"));
             }
-            match &o.pose {
-                Some(PoseSource::Truth) => {
-                    return Err(BadAllegro::EmulatedOnly("pose=truth".into(), "simulated object"));
-                }
-                None => return Err(BadAllegro::NoPose(iface.clone())),
-                Some(_) => {}
+            if o.pose == Some(PoseSource::Truth) {
+                return Err(BadAllegro::EmulatedOnly("pose=truth".into(), "simulated object"));
             }
+            let _ = iface;
         }
         Ok(o)
     }
@@ -219,6 +231,9 @@ impl fmt::Display for AllegroOptions {
         for fault in &self.faults {
             write!(f, ",fault={fault}")?;
         }
+        if self.plant == EmulatedPlant::Mujoco {
+            f.write_str(",plant=mujoco")?;
+        }
         if self.dry_run {
             f.write_str(",dry-run")?;
         }
@@ -236,6 +251,7 @@ mod tests {
             "emulated",
             "emulated,gains=paper,fault=silence@2,fault=garbage",
             "emulated,fault=hot@0.5,dry-run",
+            "emulated,gains=paper,plant=mujoco",
             "can0,gains=/etc/gains.json,pose=udp:0.0.0.0:9870",
             "can0,pose=file:poses.jsonl",
         ] {
@@ -246,13 +262,13 @@ mod tests {
         assert_eq!(o.faults, [EmulatorFault::SilenceAt(Duration::from_secs(2))]);
         let err = |s: &str| AllegroOptions::parse(s).unwrap_err().to_string();
         assert!(err("").contains("name the bus"));
-        assert!(err("can0").contains("needs an object pose source"));
+        assert!(AllegroOptions::parse("can0").unwrap().pose.is_none());
         assert!(err("can0,pose=truth").contains("needs the emulated hand"));
         assert!(err("can0,pose=udp:1.2.3.4:5,fault=garbage").contains("needs the emulated hand"));
         assert_eq!(
             err("emulated,speed=2"),
             "`speed=2` is not an allegro option (allowed: gains=vendor|paper|FILE, \
-             pose=file:PATH|udp:ADDR:PORT|truth, fault=silence@T|garbage|hot@T, dry-run)"
+             pose=file:PATH|udp:ADDR:PORT|truth, fault=silence@T|garbage|hot@T, plant=joint-model|mujoco, dry-run)"
         );
         assert!(err("emulated,fault=silence@-1").starts_with("fault `silence@-1`"));
         assert!(err("emulated,fault=boom").starts_with("fault `boom`"));

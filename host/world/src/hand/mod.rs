@@ -17,7 +17,9 @@ use crate::world::{ObjectState, StepReport, World, WorldError, WorldParams};
 
 pub mod allegro;
 mod kind;
-pub use allegro::{AllegroBus, AllegroOptions, BadAllegro, EmulatorFault, GainsChoice, PoseSource};
+pub use allegro::{
+    AllegroBus, AllegroOptions, BadAllegro, EmulatedPlant, EmulatorFault, GainsChoice, PoseSource,
+};
 pub use kind::{
     BadNoise, HandKind, HandOptions, Hands, NoiseAxis, TrackerNoise, UnknownHand, WorldHands,
     open_world,
@@ -77,6 +79,11 @@ pub trait Hand {
     /// The contacts with their forces after the last command, where the hand can sense them
     /// (tactile fingertips, or the simulated world's solver); `None` where it cannot.
     fn contact_readings(&self) -> Option<Vec<crate::world::ContactReport>> {
+        None
+    }
+    /// What the hand measured of itself so far, for `result.json` (a driver's loop period
+    /// statistics and frame counts); `None` for simulated hands.
+    fn report(&self) -> Option<serde_json::Value> {
         None
     }
 }
@@ -330,6 +337,10 @@ impl<H: Hand> Hand for Recorder<H> {
 
     fn contact_readings(&self) -> Option<Vec<crate::world::ContactReport>> {
         self.inner.contact_readings()
+    }
+
+    fn report(&self) -> Option<serde_json::Value> {
+        self.inner.report()
     }
 }
 

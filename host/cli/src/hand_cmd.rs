@@ -1,0 +1,211 @@
+//! `dips hand info|monitor|home`: what a lab runs before any experiment with the Allegro
+//! hand, on a real bus (`--hand allegro:can0`) or the emulated hand (`allegro:emulated`, the
+//! default): the hand's information and serial, temperatures, live joint angles and the loop's
+//! timing, and a slow move to a task's start pose. `--dry-run` prints every frame the driver
+//! sends instead of opening the bus (the emulated hand answers).
+
+use std::time::{Duration, Instant};
+
+use anyhow::Context;
+use clap::{Args, Subcommand};
+use dips_allegro::hand::Connection;
+use dips_world::hand::{AllegroOptions, HandKind};
+use dips_world::kinematics::{Finger, HandJoints};
+use dips_world::scenes::SceneKind;
+use dips_world::world::World;
+
+use crate::hands::CliHands;
+
+/// `dips hand`.
+#[derive(Debug, Clone, Args)]
+pub struct HandArgs {
+    /// What to do.
+    #[command(subcommand)]
+    pub action: HandAction,
+}
+
+/// The bus flags every `dips hand` command takes.
+#[derive(Debug, Clone, Args)]
+pub struct BusArgs {
+    /// The hand: `allegro:IFACE[,gains=vendor|paper|FILE]` (e.g. allegro:can0) or
+    /// `allegro:emulated[,fault=…]`.
+    #[arg(long, value_name = "allegro:IFACE[,…]", default_value = "allegro:emulated")]
+    pub hand: String,
+    /// Print the frames the driver sends (candump's form) instead of opening the bus; the
+    /// emulated hand answers.
+    #[arg(long)]
+    pub dry_run: bool,
+}
+
+/// The bring-up commands.
+#[derive(Debug, Clone, Subcommand)]
+pub enum HandAction {
+    /// Hand information, serial number and temperatures, then servo off.
+    Info(BusArgs),
+    /// Live joint angles (degrees), temperatures and the loop's period, holding the joints
+    /// where they are.
+    Monitor {
+        /// The bus.
+        #[command(flatten)]
+        bus: BusArgs,
+        /// How long to watch (s).
+        #[arg(long, default_value_t = 5.0)]
+        seconds: f64,
+        /// Lines per second.
+        #[arg(long, default_value_t = 4.0)]
+        rate_hz: f64,
+    },
+    /// Move slowly to a task's start pose (at most 0.5 rad/s) and hold it for a second.
+    Home {
+        /// The bus.
+        #[command(flatten)]
+        bus: BusArgs,
+        /// Whose start pose: `card` or `screwdriver`.
+        #[arg(long, default_value = "card")]
+        task: SceneKind,
+    },
+}
+
+impl HandArgs {
+    fn bus(&self) -> &BusArgs {
+        match &self.action {
+            HandAction::Info(b) => b,
+            HandAction::Monitor { bus, .. } | HandAction::Home { bus, .. } => bus,
+        }
+    }
+
+    /// The hand's options, `--dry-run` included.
+    pub fn options(&self) -> anyhow::Result<AllegroOptions> {
+        let bus = self.bus();
+        let kind: HandKind = bus
+            .hand
+            .parse()
+            .map_err(|e| anyhow::anyhow!("--hand {}: {e}", bus.hand))?;
+        let HandKind::Allegro(mut o) = kind else {
+            anyhow::bail!(
+                "--hand {}: dips hand brings up the Allegro hand (allegro:IFACE or \
+                 allegro:emulated)",
+                bus.hand
+            );
+        };
+        o.dry_run |= bus.dry_run;
+        Ok(o)
+    }
+}
+
+fn degrees(q: &HandJoints) -> String {
+    Finger::ALL
+        .iter()
+        .map(|f| {
+            let v = q[f.index()].map(|x| format!("{:7.2}", x.to_degrees()));
+            format!("{:>6} {}", f.name(), v.join(" "))
+        })
+        .collect::<Vec<_>>()
+        .join(" |")
+}
+
+fn temperatures(c: &Connection) -> String {
+    c.controller
+        .temperatures()
+        .iter()
+        .zip(Finger::ALL)
+        .map(|(t, f)| {
+            let v: Vec<String> = t
+                .iter()
+                .map(|x| x.map_or("?".into(), |c| c.to_string()))
+                .collect();
+            format!("{} {}", f.name(), v.join("/"))
+        })
+        .collect::<Vec<_>>()
+        .join(", ")
+}
+
+/// Run `dips hand`.
+pub fn run(args: HandArgs, hands: &dyn CliHands) -> anyhow::Result<()> {
+    let options = args.options()?;
+    let scene = match &args.action {
+        HandAction::Home { task, .. } => *task,
+        _ => SceneKind::Card,
+    };
+    let conn = Connection::open(&options, scene, hands.allegro_plant(options.plant))
+        .with_context(|| format!("--hand allegro:{options}"))?;
+    let outcome = act(&args.action, &conn, scene);
+    let stats = conn.controller.stats();
+    let stop = conn.close();
+    eprintln!(
+        "loop: {} pose sets, period p50 {:.3} ms, p99 {:.3} ms, max {:.3} ms; {} frames sent \
+         ({} SET_TORQUE), {} received, {} bad; stopped: {stop}",
+        stats.pose_sets,
+        stats.period.p50_ms,
+        stats.period.p99_ms,
+        stats.period.max_ms,
+        stats.frames_sent,
+        stats.torque_frames,
+        stats.frames_received,
+        stats.bad_frames,
+    );
+    outcome
+}
+
+fn act(action: &HandAction, conn: &Connection, scene: SceneKind) -> anyhow::Result<()> {
+    let c = &conn.controller;
+    match action {
+        HandAction::Info(_) => {
+            let b = c.bring_up().context("the hand gave no information")?;
+            println!("bus:              {}", conn.bus_name);
+            println!("hardware version: {:#06x}", b.info.hardware_version);
+            println!("firmware version: {:#06x}", b.info.firmware_version);
+            println!("hand:             {:?}", b.info.hand_type);
+            println!(
+                "serial:           {}",
+                b.serial
+                    .map(|s| String::from_utf8_lossy(&s).into_owned())
+                    .unwrap_or_else(|| "(no answer)".into())
+            );
+            println!("temperature:      {} °C", b.info.temperature_c);
+            println!(
+                "status:           {:#04x} (servo {}, high temperature {}, internal comms fault {})",
+                b.info.status.0,
+                b.info.status.servo_on(),
+                b.info.status.high_temperature(),
+                b.info.status.internal_communication_fault()
+            );
+            // One temperature poll comes right after start-up.
+            c.wait_until(Instant::now() + Duration::from_millis(100))?;
+            println!("joints (°C):      {}", temperatures(conn));
+            println!("joints (deg):     {}", degrees(&c.joints()));
+        }
+        HandAction::Monitor {
+            seconds, rate_hz, ..
+        } => {
+            let every = Duration::from_secs_f64(1.0 / rate_hz.clamp(0.1, 100.0));
+            let end = Instant::now() + Duration::from_secs_f64(seconds.max(0.0));
+            while Instant::now() < end {
+                c.wait_until(Instant::now() + every)?;
+                let s = c.stats();
+                println!(
+                    "{} | p99 {:.2} ms | {}",
+                    degrees(&c.joints()),
+                    s.period.p99_ms,
+                    temperatures(conn)
+                );
+            }
+        }
+        HandAction::Home { .. } => {
+            let start = World::new(scene).joints();
+            eprintln!("moving to the {} start pose at most 0.5 rad/s", scene.name());
+            conn.home(&start)?;
+            c.wait_until(Instant::now() + Duration::from_secs(1))?;
+            let q = c.joints();
+            let err = q
+                .iter()
+                .flatten()
+                .zip(start.iter().flatten())
+                .map(|(a, b)| (a - b).abs())
+                .fold(0.0, f64::max);
+            println!("home: {}", degrees(&q));
+            println!("largest error after 1 s hold: {:.4} rad", err);
+        }
+    }
+    Ok(())
+}
