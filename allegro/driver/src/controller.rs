@@ -42,7 +42,24 @@ pub struct ControllerConfig {
     pub hand: HandModel,
     /// The hand base's pose in the world (gravity's direction in the hand).
     pub base: Isometry3<f64>,
+    /// What a fault does once the torques are zero.
+    pub on_fault: OnFault,
 }
+
+/// What a fault stop (anything but a requested stop) does after the shutdown frames.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub enum OnFault {
+    /// Record it: the next call on the controller returns it (libraries, tests).
+    #[default]
+    Report,
+    /// Also print it and end the process with [`EXIT_HAND_FAULT`], at once, whatever the
+    /// program's other threads are doing (a planning call can take seconds): what the `dips`
+    /// command line does, so that a hand fault ends the run within the watchdog's time.
+    ExitProcess,
+}
+
+/// The exit code of a process ended by a hand fault ([`OnFault::ExitProcess`]).
+pub const EXIT_HAND_FAULT: i32 = 3;
 
 /// What the hand said at start-up.
 #[derive(Debug, Clone, PartialEq)]
@@ -351,6 +368,11 @@ fn run(bus: Box<dyn CanBus>, config: ControllerConfig, shared: Arc<Shared>) {
         ),
     };
     guard.shutdown();
+    let fault = !matches!(stop, Stop::Requested | Stop::ProgramError(_));
+    if fault && config.on_fault == OnFault::ExitProcess {
+        eprintln!("error: allegro hand: {stop}");
+        std::process::exit(EXIT_HAND_FAULT);
+    }
     let mut st = shared.lock();
     st.stats.frames_sent = guard.sent;
     st.stats.torque_frames = guard.torque_frames;

@@ -30,17 +30,16 @@ impl JointFilter {
     /// Take a new reading `dt` seconds after the last.
     pub fn update(&mut self, q: &HandJoints, dt: f64) {
         let dt = dt.max(1e-4);
-        for f in 0..4 {
-            for j in 0..4 {
-                let prev = self.position[f][j];
-                let p = KEEP * prev + MIX * self.raw[f][j] + MIX * q[f][j];
-                let v = (p - prev) / dt;
-                self.velocity[f][j] =
-                    KEEP * self.velocity[f][j] + MIX * self.raw_velocity[f][j] + MIX * v;
-                self.raw_velocity[f][j] = v;
-                self.position[f][j] = p;
-                self.raw[f][j] = q[f][j];
-            }
+        let joints = (0..4).flat_map(|f| (0..4).map(move |j| (f, j)));
+        for (f, j) in joints {
+            let prev = self.position[f][j];
+            let p = KEEP * prev + MIX * self.raw[f][j] + MIX * q[f][j];
+            let v = (p - prev) / dt;
+            self.velocity[f][j] =
+                KEEP * self.velocity[f][j] + MIX * self.raw_velocity[f][j] + MIX * v;
+            self.raw_velocity[f][j] = v;
+            self.position[f][j] = p;
+            self.raw[f][j] = q[f][j];
         }
     }
 

@@ -18,7 +18,7 @@ use serde_json::json;
 use crate::bus::echo::EchoBus;
 use crate::bus::memory::MemoryBus;
 use crate::bus::{BusError, CanBus};
-use crate::controller::{Controller, ControllerConfig};
+use crate::controller::{Controller, ControllerConfig, OnFault};
 use crate::emu::{Emulator, EmulatorConfig, EmulatorHandle, Plant, PlantError};
 use crate::gains::{GainsError, PdGains};
 use crate::pose::{FileFeed, PoseError, PoseFeed, TruthFeed, UdpFeed};
@@ -134,6 +134,7 @@ impl Connection {
         options: &AllegroOptions,
         scene: SceneKind,
         plant: PlantFactory<'_>,
+        on_fault: OnFault,
     ) -> Result<Connection, OpenError> {
         let gains = gains_of(&options.gains)?;
         gains.validate()?;
@@ -173,6 +174,7 @@ impl Connection {
             period_ms: 3,
             hand: model.clone(),
             base: scene.hand_base(),
+            on_fault,
         };
         let controller = Controller::start(bus, config)?;
         Ok(Connection {
@@ -216,15 +218,16 @@ impl AllegroHand {
         options: &AllegroOptions,
         scene: SceneKind,
         plant: PlantFactory<'_>,
+        on_fault: OnFault,
     ) -> Result<AllegroHand, OpenError> {
-        let connection = Connection::open(options, scene, plant)?;
+        let connection = Connection::open(options, scene, plant, on_fault)?;
         let start = World::new(scene).joints();
         let pose: Box<dyn PoseFeed> = match (&options.pose, &connection.emulator) {
             (Some(PoseSource::File(p)), _) => Box::new(FileFeed::open(p, scene)?),
             (Some(PoseSource::Udp(a)), _) => Box::new(UdpFeed::open(*a, scene, POSE_MAX_AGE)?),
             (_, Some(emu)) => {
                 let truth = emu.truth_reader();
-                Box::new(TruthFeed::new(move || truth()))
+                Box::new(TruthFeed::new(truth))
             }
             (_, None) => {
                 return Err(OpenError::Spec(BadAllegro::NoPose(connection.bus_name.clone())));

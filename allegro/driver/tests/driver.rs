@@ -10,7 +10,7 @@ use std::time::{Duration, Instant};
 use dips_allegro::bus::CanBus;
 use dips_allegro::bus::echo::EchoBus;
 use dips_allegro::bus::memory::MemoryBus;
-use dips_allegro::controller::{Controller, ControllerConfig};
+use dips_allegro::controller::{Controller, ControllerConfig, OnFault};
 use dips_allegro::emu::{Emulator, EmulatorConfig, EmulatorHandle, Fault, JointModel};
 use dips_allegro::gains::PdGains;
 use dips_allegro::safety::{SafetyLimits, Stop};
@@ -30,6 +30,7 @@ fn config() -> ControllerConfig {
         period_ms: 3,
         hand: HandModel::allegro_v4(),
         base: SceneKind::Card.hand_base(),
+        on_fault: OnFault::Report,
     }
 }
 

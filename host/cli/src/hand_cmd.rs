@@ -127,7 +127,12 @@ pub fn run(args: HandArgs, hands: &dyn CliHands) -> anyhow::Result<()> {
         HandAction::Home { task, .. } => *task,
         _ => SceneKind::Card,
     };
-    let conn = Connection::open(&options, scene, hands.allegro_plant(options.plant))
+    let conn = Connection::open(
+        &options,
+        scene,
+        hands.allegro_plant(options.plant),
+        dips_allegro::controller::OnFault::Report,
+    )
         .with_context(|| format!("--hand allegro:{options}"))?;
     let outcome = act(&args.action, &conn, scene);
     let stats = conn.controller.stats();

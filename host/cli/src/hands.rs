@@ -87,7 +87,13 @@ pub fn open_allegro(
     if hand_options.noise.is_some() {
         return Err(dips_allegro::hand::OpenError::Noise.into());
     }
-    Ok(Box::new(AllegroHand::open(options, scene, plant)?))
+    // A hand fault ends the process at once, torques zeroed (the episode may be planning).
+    Ok(Box::new(AllegroHand::open(
+        options,
+        scene,
+        plant,
+        dips_allegro::controller::OnFault::ExitProcess,
+    )?))
 }
 
 /// The hands of the `dips` binary: our world, and the Allegro driver with its emulated hand on

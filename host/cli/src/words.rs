@@ -547,11 +547,11 @@ mod tests {
         let e = "host/data/allegro_v4.json".parse::<HandKind>().unwrap_err();
         let w = unknown_hand(&e);
         assert!(w.contains("--hand-model FILE"), "{w}");
-        assert!(w.contains("(allowed: world, mujoco)"), "{w}");
+        assert!(w.contains("(allowed: world, mujoco, allegro:IFACE)"), "{w}");
         let e = "isaac".parse::<HandKind>().unwrap_err();
         assert_eq!(
             unknown_hand(&e),
-            "unknown hand `isaac` (allowed: world, mujoco)"
+            "unknown hand `isaac` (allowed: world, mujoco, allegro:IFACE)"
         );
         let w = of(&HandError::NoTracker {
             hand: HandKind::World,

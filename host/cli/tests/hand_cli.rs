@@ -74,7 +74,7 @@ fn an_unknown_hand_lists_the_allowed_ones() {
         let lines = error_lines(&out.stderr);
         assert_eq!(lines.len(), 1, "{lines:?}");
         assert!(
-            lines[0].contains("unknown hand `isaac` (allowed: world, mujoco)"),
+            lines[0].contains("unknown hand `isaac` (allowed: world, mujoco, allegro:IFACE)"),
             "{lines:?}"
         );
     }

@@ -19,8 +19,11 @@
 //!
 //! The object: [`JointModel::with_world`] couples the joints to our quasi-static
 //! [`World`]. Every [`JointModelParams::world_period`] seconds of plant time the world executes
-//! one action toward the emulated joints' positions ([`World::step_targets`]): its hand follows
-//! the emulated hand and pushes the object as in our world. Where the world could not follow
+//! one action ([`World::step_targets`]) toward `q + τ̄/kp`: the emulated joints' positions
+//! offset by the motors' mean torque over the period divided by the world's joint stiffness.
+//! The world's hand is a spring of that stiffness about its targets, so it follows the
+//! emulated hand and presses on the object with the torques the driver sent (in free space the
+//! offset is the small torque that friction and damping take). Where the world could not follow
 //! (a fingertip against the object or the table), the world's joint stopped short of its
 //! target: the emulated joint may then go no further than the world's in that direction (it
 //! is put back there if it has gone past it) and its velocity into the contact is zeroed, so
@@ -140,6 +143,10 @@ pub struct JointModel {
     object: Option<ObjectPose>,
     since_world: f64,
     world_steps: u64,
+    /// The world's joint stiffness (N·m/rad): its hand is a spring about its targets.
+    world_kp: f64,
+    /// ∫τ dt since the last world action, per joint (N·m·s).
+    impulse: HandJoints,
 }
 
 impl JointModel {
@@ -160,6 +167,8 @@ impl JointModel {
             object: None,
             since_world: 0.0,
             world_steps: 0,
+            world_kp: 0.0,
+            impulse: [[0.0; 4]; 4],
         }
     }
 
@@ -199,6 +208,7 @@ impl JointModel {
         }
         self.object = Some(pose_of(&world));
         self.since_world = 0.0;
+        self.world_kp = world.params().kp;
         (self, Box::new(world))
     }
 
@@ -290,9 +300,18 @@ impl JointModel {
         };
         self.since_world += dt;
         if self.since_world >= period && link.idle() {
+            // The world's hand is a spring of stiffness kp about its targets: aiming it at
+            // `q + τ̄/kp` makes it press with the motors' mean torque τ̄ over the period, so the
+            // object feels the torques the driver sent, not the world's own stiffness.
+            let elapsed = self.since_world.max(dt);
+            let kp = self.world_kp.max(1e-9);
+            let targets: HandJoints = std::array::from_fn(|f| {
+                std::array::from_fn(|j| self.q[f][j] + self.impulse[f][j] / elapsed / kp)
+            });
+            self.impulse = [[0.0; 4]; 4];
             // A late action (the last one took longer than a period) restarts the count.
             self.since_world = (self.since_world - period).min(period);
-            link.submit(self.q);
+            link.submit(targets);
         }
         if let Some(outcome) = link.poll() {
             let r = outcome.map_err(Self::error)?;
@@ -327,6 +346,7 @@ impl Plant for JointModel {
         for (f, row) in torques_nm.iter().enumerate() {
             for (j, &tau) in row.iter().enumerate() {
                 self.step_joint(f, j, tau, dt);
+                self.impulse[f][j] += tau * dt;
             }
         }
         self.step_world(dt)
