@@ -21,9 +21,9 @@ use dips_world::kinematics::{Finger, HandJoints, HandModel};
 use nalgebra::Isometry3;
 
 use crate::bus::CanBus;
+use crate::filter::JointFilter;
 use crate::gains::PdGains;
 use crate::gravity::gravity_pwm;
-use crate::filter::JointFilter;
 use crate::safety::{RunningLoop, SafetyLimits, Stop, interrupt_requested};
 use crate::stats::{Intervals, LoopStats};
 
@@ -316,7 +316,9 @@ impl ShutdownGuard {
         let frame: CanFrame = cmd
             .to_frame(self.device)
             .ok_or_else(|| Stop::Bus("a frame could not be built".into()))?;
-        self.bus.send(&frame).map_err(|e| Stop::Bus(e.to_string()))?;
+        self.bus
+            .send(&frame)
+            .map_err(|e| Stop::Bus(e.to_string()))?;
         self.sent += 1;
         if matches!(cmd, HostCommand::SetTorque { .. }) {
             self.torque_frames += 1;
@@ -349,6 +351,7 @@ impl Drop for ShutdownGuard {
 
 fn run(bus: Box<dyn CanBus>, config: ControllerConfig, shared: Arc<Shared>) {
     let _running = RunningLoop::enter();
+    shared.lock().stats.scheduling = crate::realtime::make_realtime(crate::realtime::LOOP_PRIORITY);
     let mut guard = ShutdownGuard {
         bus,
         device: config.device,
@@ -356,7 +359,9 @@ fn run(bus: Box<dyn CanBus>, config: ControllerConfig, shared: Arc<Shared>) {
         sent: 0,
         torque_frames: 0,
     };
-    let outcome = catch_unwind(AssertUnwindSafe(|| Loop::new(&config, &shared).run(&mut guard)));
+    let outcome = catch_unwind(AssertUnwindSafe(|| {
+        Loop::new(&config, &shared).run(&mut guard)
+    }));
     let stop = match outcome {
         Ok(stop) => stop,
         Err(panic) => Stop::Panicked(
@@ -507,7 +512,11 @@ impl<'a> Loop<'a> {
         guard: &mut ShutdownGuard,
         timeout: Duration,
     ) -> Result<Option<HandReply>, Stop> {
-        let Some(frame) = guard.bus.recv(timeout).map_err(|e| Stop::Bus(e.to_string()))? else {
+        let Some(frame) = guard
+            .bus
+            .recv(timeout)
+            .map_err(|e| Stop::Bus(e.to_string()))?
+        else {
             return Ok(None);
         };
         let mut st = self.shared.lock();
@@ -645,7 +654,8 @@ impl<'a> Loop<'a> {
         }
         let mut st = self.shared.lock();
         if let Some(last) = self.last_tick {
-            st.intervals.push(now.duration_since(last).as_secs_f64() * 1e3);
+            st.intervals
+                .push(now.duration_since(last).as_secs_f64() * 1e3);
         }
         st.stats.pose_sets += 1;
         st.stats.saturated_ticks += u64::from(saturated);

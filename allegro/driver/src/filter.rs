@@ -71,6 +71,10 @@ mod tests {
             let q = 0.5 * k as f64 * 0.003;
             f.update(&[[q; 4]; 4], 0.003);
         }
-        assert!((f.velocity()[0][0] - 0.5).abs() < 1e-6, "{}", f.velocity()[0][0]);
+        assert!(
+            (f.velocity()[0][0] - 0.5).abs() < 1e-6,
+            "{}",
+            f.velocity()[0][0]
+        );
     }
 }

@@ -90,7 +90,12 @@ impl PdGains {
         PdGains {
             name: vendor_name(),
             kp: [[4000.0; 4]; 4],
-            kd: [finger_kd, finger_kd, finger_kd, [300.0, 200.0, 200.0, 150.0]],
+            kd: [
+                finger_kd,
+                finger_kd,
+                finger_kd,
+                [300.0, 200.0, 200.0, 150.0],
+            ],
             pwm_caps: VENDOR_PWM_CAPS,
             global_cap: 1200.0,
             error_clamp_rad: None,
@@ -151,8 +156,18 @@ impl PdGains {
         for f in 0..4 {
             for j in 0..4 {
                 let (kp, kd, cap) = (self.kp[f][j], self.kd[f][j], self.pwm_caps[f][j]);
-                range(format!("kp[{f}][{j}]"), kp, kp.is_finite() && kp >= 0.0, "≥ 0")?;
-                range(format!("kd[{f}][{j}]"), kd, kd.is_finite() && kd >= 0.0, "≥ 0")?;
+                range(
+                    format!("kp[{f}][{j}]"),
+                    kp,
+                    kp.is_finite() && kp >= 0.0,
+                    "≥ 0",
+                )?;
+                range(
+                    format!("kd[{f}][{j}]"),
+                    kd,
+                    kd.is_finite() && kd >= 0.0,
+                    "≥ 0",
+                )?;
                 range(
                     format!("pwm_caps[{f}][{j}]"),
                     cap,
@@ -191,7 +206,11 @@ impl PdGains {
         if let Some(t) = self.torque_clamp {
             cap = cap.min(t * f64::from(dips_allegro_protocol::scale::FULL_SCALE_PWM));
         }
-        if pwm.is_nan() { 0.0 } else { pwm.clamp(-cap, cap) }
+        if pwm.is_nan() {
+            0.0
+        } else {
+            pwm.clamp(-cap, cap)
+        }
     }
 }
 
@@ -238,7 +257,10 @@ mod tests {
         assert_eq!(e, "gains kd[0][0]: -1 (≥ 0)");
         std::fs::write(&path, r#"{"kp": 1}"#).unwrap();
         let e = PdGains::load(&path).unwrap_err().to_string();
-        assert!(e.starts_with(&format!("gains file {}: ", path.display())), "{e}");
+        assert!(
+            e.starts_with(&format!("gains file {}: ", path.display())),
+            "{e}"
+        );
         assert!(e.contains("expected JSON with kp"), "{e}");
         let e = PdGains::load(&dir.join("missing.json")).unwrap_err();
         assert!(matches!(e, GainsError::Io { .. }), "{e}");

@@ -109,7 +109,11 @@ mod tests {
                     qp[f][j] += h;
                     qm[f][j] -= h;
                     let grad = (energy(&hand, &base, &qp) - energy(&hand, &base, &qm)) / (2.0 * h);
-                    assert!((t[f][j] - grad).abs() < 1e-7, "{scene:?} {f} {j}: {} vs {grad}", t[f][j]);
+                    assert!(
+                        (t[f][j] - grad).abs() < 1e-7,
+                        "{scene:?} {f} {j}: {} vs {grad}",
+                        t[f][j]
+                    );
                     // A finger of ~0.14 kg on under 0.15 m: below 0.25 N·m (0.7 is full scale).
                     assert!(t[f][j].abs() < 0.25, "{}", t[f][j]);
                 }

@@ -53,7 +53,9 @@ pub enum OpenError {
     #[error("hand allegro: {0}")]
     Spec(#[from] BadAllegro),
     /// Tracker noise asked of the Allegro hand.
-    #[error("allegro hand: tracker noise is simulated by the mujoco hand only; a real hand's tracker has its own")]
+    #[error(
+        "allegro hand: tracker noise is simulated by the mujoco hand only; a real hand's tracker has its own"
+    )]
     Noise,
 }
 
@@ -68,8 +70,7 @@ impl From<OpenError> for HandError {
 
 /// Builds the emulated hand's plant for a scene and its start joints (the main workspace's
 /// joint model with our world, or MuJoCo in `host/mujoco`).
-pub type PlantFactory<'a> =
-    &'a dyn Fn(SceneKind, HandJoints) -> Result<Box<dyn Plant>, PlantError>;
+pub type PlantFactory<'a> = &'a dyn Fn(SceneKind, HandJoints) -> Result<Box<dyn Plant>, PlantError>;
 
 /// Tracking of the reference at the end of each action.
 #[derive(Debug, Clone, Copy, Default)]
@@ -230,7 +231,9 @@ impl AllegroHand {
                 Box::new(TruthFeed::new(truth))
             }
             (_, None) => {
-                return Err(OpenError::Spec(BadAllegro::NoPose(connection.bus_name.clone())));
+                return Err(OpenError::Spec(BadAllegro::NoPose(
+                    connection.bus_name.clone(),
+                )));
             }
         };
         connection.home(&start)?;

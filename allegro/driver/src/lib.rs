@@ -14,13 +14,14 @@
 //! - [`units`]: what PWM means in N·m.
 
 pub mod bus;
-pub mod emu;
-pub mod units;
 pub mod controller;
+pub mod emu;
 pub mod filter;
 pub mod gains;
 pub mod gravity;
+pub mod hand;
+pub mod pose;
+pub mod realtime;
 pub mod safety;
 pub mod stats;
-pub mod pose;
-pub mod hand;
+pub mod units;

@@ -57,7 +57,9 @@ impl PoseDatagram {
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum PoseError {
     /// The file cannot be read or a line is not a pose.
-    #[error("pose file {path} line {line}: {message} (expected {{\"t_s\", \"position_m\", \"quaternion_wxyz\"}} per line)")]
+    #[error(
+        "pose file {path} line {line}: {message} (expected {{\"t_s\", \"position_m\", \"quaternion_wxyz\"}} per line)"
+    )]
     File {
         /// The file.
         path: PathBuf,
@@ -112,8 +114,7 @@ impl Unwrapper {
         let angle = match self.last {
             None => raw,
             Some((last_raw, last_angle)) => {
-                let d = (raw - last_raw + std::f64::consts::PI)
-                    .rem_euclid(std::f64::consts::TAU)
+                let d = (raw - last_raw + std::f64::consts::PI).rem_euclid(std::f64::consts::TAU)
                     - std::f64::consts::PI;
                 last_angle + d
             }
@@ -194,7 +195,8 @@ impl FileFeed {
             if line.trim().is_empty() {
                 continue;
             }
-            let d: PoseDatagram = serde_json::from_str(line).map_err(|e| err(i + 1, e.to_string()))?;
+            let d: PoseDatagram =
+                serde_json::from_str(line).map_err(|e| err(i + 1, e.to_string()))?;
             let iso = d.isometry().map_err(|m| err(i + 1, m))?;
             if let Some((t, _)) = poses.last()
                 && d.t_s < *t
@@ -243,7 +245,11 @@ pub struct UdpFeed {
 
 impl UdpFeed {
     /// Bind `addr` and receive poses; a pose older than `max_age` is stale.
-    pub fn open(addr: SocketAddr, scene: SceneKind, max_age: Duration) -> Result<UdpFeed, PoseError> {
+    pub fn open(
+        addr: SocketAddr,
+        scene: SceneKind,
+        max_age: Duration,
+    ) -> Result<UdpFeed, PoseError> {
         let err = |m: String| PoseError::Udp { addr, message: m };
         let socket = UdpSocket::bind(addr).map_err(|e| err(e.to_string()))?;
         socket
@@ -259,7 +265,9 @@ impl UdpFeed {
                 let mut unwrap = Unwrapper::new(scene);
                 let mut buf = [0u8; 2048];
                 while !s.load(Ordering::SeqCst) {
-                    let Ok(n) = socket.recv(&mut buf) else { continue };
+                    let Ok(n) = socket.recv(&mut buf) else {
+                        continue;
+                    };
                     let parsed = std::str::from_utf8(&buf[..n])
                         .ok()
                         .and_then(|t| serde_json::from_str::<PoseDatagram>(t).ok())
@@ -306,7 +314,10 @@ impl PoseFeed for UdpFeed {
             source_name: self.name(),
             message,
         };
-        let g = self.latest.lock().map_err(|_| stale("receiver failed".into()))?;
+        let g = self
+            .latest
+            .lock()
+            .map_err(|_| stale("receiver failed".into()))?;
         match &*g {
             None => Err(stale("no pose received yet".into())),
             Some((t, p)) if t.elapsed() <= self.max_age => Ok(p.clone()),
@@ -334,7 +345,9 @@ mod tests {
 
     fn datagram(t: f64, x: f64, yaw: f64) -> String {
         let (s, c) = (0.5 * yaw).sin_cos();
-        format!(r#"{{"t_s": {t}, "position_m": [{x}, 0.1, 0.02], "quaternion_wxyz": [{c}, 0, 0, {s}]}}"#)
+        format!(
+            r#"{{"t_s": {t}, "position_m": [{x}, 0.1, 0.02], "quaternion_wxyz": [{c}, 0, 0, {s}]}}"#
+        )
     }
 
     #[test]
@@ -350,9 +363,15 @@ mod tests {
         std::thread::sleep(Duration::from_millis(30));
         let p = feed.pose().unwrap();
         // −3.1 after 3.1 is a turn of 0.083 rad past π, not back by 6.2.
-        assert!((p.coords[2] - (std::f64::consts::TAU - 3.1)).abs() < 1e-9, "{:?}", p.coords);
+        assert!(
+            (p.coords[2] - (std::f64::consts::TAU - 3.1)).abs() < 1e-9,
+            "{:?}",
+            p.coords
+        );
         std::fs::write(&path, "{\"t_s\": 1}").unwrap();
-        let e = FileFeed::open(&path, SceneKind::Card).unwrap_err().to_string();
+        let e = FileFeed::open(&path, SceneKind::Card)
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("line 1") && e.contains("position_m"), "{e}");
         let _ = std::fs::remove_dir_all(&dir);
     }
@@ -373,7 +392,8 @@ mod tests {
         assert!(matches!(feed.pose(), Err(PoseError::Stale { .. })));
         let tx = UdpSocket::bind("127.0.0.1:0").unwrap();
         tx.send_to(b"not a pose", addr).unwrap();
-        tx.send_to(datagram(0.0, 0.03, 0.2).as_bytes(), addr).unwrap();
+        tx.send_to(datagram(0.0, 0.03, 0.2).as_bytes(), addr)
+            .unwrap();
         let deadline = Instant::now() + Duration::from_secs(2);
         while feed.pose().is_err() && Instant::now() < deadline {
             std::thread::sleep(Duration::from_millis(5));

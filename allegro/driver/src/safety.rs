@@ -89,9 +89,7 @@ pub enum Stop {
         margin: f64,
     },
     /// A joint too hot, or the hand's own high-temperature bit.
-    #[error(
-        "temperature: {what} at {celsius} °C (limit {limit} °C); torques zeroed, servo off"
-    )]
+    #[error("temperature: {what} at {celsius} °C (limit {limit} °C); torques zeroed, servo off")]
     Temperature {
         /// Which joint, or `hand status`.
         what: String,

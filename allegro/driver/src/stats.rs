@@ -40,6 +40,8 @@ pub struct LoopStats {
     pub ignored_frames: u64,
     /// Ticks where a PWM hit its cap.
     pub saturated_ticks: u64,
+    /// How the loop's thread was scheduled (`fifo:80`, or `normal (why)`).
+    pub scheduling: String,
 }
 
 /// Collects loop intervals.

@@ -49,7 +49,8 @@ fn the_driver_drives_the_emulated_hand_over_vcan0() {
         on_fault: OnFault::Report,
     };
     let c = Controller::start(Box::new(host), config).unwrap();
-    c.wait_until(Instant::now() + Duration::from_millis(300)).unwrap();
+    c.wait_until(Instant::now() + Duration::from_millis(300))
+        .unwrap();
     assert!(c.stats().pose_sets > 30);
     assert_eq!(c.stop(), Stop::Requested);
     std::thread::sleep(Duration::from_millis(30));

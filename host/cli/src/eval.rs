@@ -267,11 +267,22 @@ pub fn run(args: EvalArgs, hands: &dyn Hands) -> anyhow::Result<()> {
     let cores = dips_planning::default_threads();
     // One Allegro hand takes one episode at a time: a real bus has one hand on it, and an
     // emulated hand runs in real time on a core of its own.
-    let one_hand = args.hand.hand.as_ref().is_some_and(|h| h.allegro().is_some());
+    let one_hand = args
+        .hand
+        .hand
+        .as_ref()
+        .is_some_and(|h| h.allegro().is_some());
     if one_hand && args.jobs.is_some_and(|j| j > 1) {
-        anyhow::bail!("--jobs {}: an Allegro hand runs one episode at a time (--jobs 1)", args.jobs.unwrap_or(1));
+        anyhow::bail!(
+            "--jobs {}: an Allegro hand runs one episode at a time (--jobs 1)",
+            args.jobs.unwrap_or(1)
+        );
     }
-    let jobs = if one_hand { 1 } else { args.jobs.unwrap_or(cores) };
+    let jobs = if one_hand {
+        1
+    } else {
+        args.jobs.unwrap_or(cores)
+    };
     let model_threads = match args.model_threads {
         Some(0) => anyhow::bail!("--model-threads must be at least 1"),
         Some(n) => n,

@@ -29,7 +29,11 @@ pub struct HandArgs {
 pub struct BusArgs {
     /// The hand: `allegro:IFACE[,gains=vendor|paper|FILE]` (e.g. allegro:can0) or
     /// `allegro:emulated[,fault=…]`.
-    #[arg(long, value_name = "allegro:IFACE[,…]", default_value = "allegro:emulated")]
+    #[arg(
+        long,
+        value_name = "allegro:IFACE[,…]",
+        default_value = "allegro:emulated"
+    )]
     pub hand: String,
     /// Print the frames the driver sends (candump's form) instead of opening the bus; the
     /// emulated hand answers.
@@ -133,7 +137,7 @@ pub fn run(args: HandArgs, hands: &dyn CliHands) -> anyhow::Result<()> {
         hands.allegro_plant(options.plant),
         dips_allegro::controller::OnFault::Report,
     )
-        .with_context(|| format!("--hand allegro:{options}"))?;
+    .with_context(|| format!("--hand allegro:{options}"))?;
     let outcome = act(&args.action, &conn, scene);
     let stats = conn.controller.stats();
     let stop = conn.close();
@@ -198,7 +202,10 @@ fn act(action: &HandAction, conn: &Connection, scene: SceneKind) -> anyhow::Resu
         }
         HandAction::Home { .. } => {
             let start = World::new(scene).joints();
-            eprintln!("moving to the {} start pose at most 0.5 rad/s", scene.name());
+            eprintln!(
+                "moving to the {} start pose at most 0.5 rad/s",
+                scene.name()
+            );
             conn.home(&start)?;
             c.wait_until(Instant::now() + Duration::from_secs(1))?;
             let q = c.joints();

@@ -70,7 +70,10 @@ impl HandArgs {
 
 /// The emulated Allegro hand's plant in this binary: the joint model, with the object moved by
 /// our quasi-static world (`dips_allegro::emu::joint_model`).
-pub fn joint_model_plant(scene: SceneKind, start: HandJoints) -> Result<Box<dyn Plant>, PlantError> {
+pub fn joint_model_plant(
+    scene: SceneKind,
+    start: HandJoints,
+) -> Result<Box<dyn Plant>, PlantError> {
     let mut world = World::new(scene);
     world.set_joints(&start);
     Ok(Box::new(JointModel::new(scene, start).with_world(world)))
@@ -124,7 +127,6 @@ impl Hands for DipsHands {
             }),
         }
     }
-
 }
 
 impl CliHands for DipsHands {

@@ -20,12 +20,18 @@ fn temp_dir(name: &str) -> std::path::PathBuf {
 fn a_card_episode_runs_through_the_driver_and_the_emulated_hand() {
     let dir = temp_dir("card");
     let out = dips()
-        .args(["episode", "--task", "card", "--method", "dips", "--seed", "2"])
+        .args([
+            "episode", "--task", "card", "--method", "dips", "--seed", "2",
+        ])
         .args(["--max-modes", "1", "--hand", "allegro:emulated", "--out"])
         .arg(&dir)
         .output()
         .expect("run dips");
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     let v: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(dir.join("result.json")).unwrap()).unwrap();
     assert_eq!(v["hand"], "allegro");
@@ -53,13 +59,20 @@ fn a_silent_hand_ends_the_episode_through_the_watchdog() {
     let dir = temp_dir("silence");
     let t0 = Instant::now();
     let out = dips()
-        .args(["episode", "--task", "card", "--method", "dips", "--seed", "2"])
+        .args([
+            "episode", "--task", "card", "--method", "dips", "--seed", "2",
+        ])
         .args(["--hand", "allegro:emulated,fault=silence@2", "--out"])
         .arg(&dir)
         .output()
         .expect("run dips");
     let took = t0.elapsed();
-    assert_eq!(out.status.code(), Some(3), "{}", String::from_utf8_lossy(&out.stderr));
+    assert_eq!(
+        out.status.code(),
+        Some(3),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(err.contains("error: allegro hand: watchdog:"), "{err}");
     assert!(err.contains("torques zeroed, servo off"), "{err}");
@@ -73,13 +86,28 @@ fn a_silent_hand_ends_the_episode_through_the_watchdog() {
 #[test]
 fn a_dry_run_prints_the_frames_and_opens_no_bus() {
     let out = dips()
-        .args(["hand", "home", "--hand", "allegro:can0", "--dry-run", "--task", "card"])
+        .args([
+            "hand",
+            "home",
+            "--hand",
+            "allegro:can0",
+            "--dry-run",
+            "--task",
+            "card",
+        ])
         .output()
         .expect("run dips");
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     let text = String::from_utf8_lossy(&out.stdout);
     for id in ["180", "184", "188", "18C"] {
-        assert!(text.contains(&format!(" can0 {id} [8] ")), "no SET_TORQUE {id}");
+        assert!(
+            text.contains(&format!(" can0 {id} [8] ")),
+            "no SET_TORQUE {id}"
+        );
     }
     assert!(text.contains("largest error after 1 s hold"), "{text}");
 }
@@ -90,7 +118,11 @@ fn bring_up_reports_the_hand_and_a_missing_interface_is_one_clear_error() {
         .args(["hand", "info", "--hand", "allegro:emulated"])
         .output()
         .expect("run dips");
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     let text = String::from_utf8_lossy(&out.stdout);
     assert!(text.contains("hardware version: 0x0402"), "{text}");
     assert!(text.contains("serial:           SAH040X1"), "{text}");
@@ -102,11 +134,16 @@ fn bring_up_reports_the_hand_and_a_missing_interface_is_one_clear_error() {
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(err.contains("CAN interface nosuchcan7"), "{err}");
     let out = dips()
-        .args(["episode", "--task", "card", "--method", "dips", "--out", "x"])
+        .args([
+            "episode", "--task", "card", "--method", "dips", "--out", "x",
+        ])
         .args(["--hand", "allegro:emulated,fault=boom"])
         .output()
         .expect("run dips");
     assert_eq!(out.status.code(), Some(2));
     let err = String::from_utf8_lossy(&out.stderr);
-    assert!(err.contains("fault `boom`: expected silence@SECONDS, garbage or hot@SECONDS"), "{err}");
+    assert!(
+        err.contains("fault `boom`: expected silence@SECONDS, garbage or hot@SECONDS"),
+        "{err}"
+    );
 }

@@ -18,7 +18,9 @@ pub struct EchoBus<B: CanBus> {
 
 impl<B: CanBus> std::fmt::Debug for EchoBus<B> {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.debug_struct("EchoBus").field("label", &self.label).finish()
+        f.debug_struct("EchoBus")
+            .field("label", &self.label)
+            .finish()
     }
 }
 

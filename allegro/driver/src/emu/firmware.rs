@@ -325,6 +325,9 @@ impl Firmware {
 
     /// Read and act on every frame waiting on the bus.
     fn read(&mut self, bus: &mut dyn CanBus, plant: &dyn Plant) -> Tick {
+        // A reply that finds the host gone does not end the read: the frames the host sent
+        // before it went (its shutdown's zero torques and SYSTEM_OFF) are still applied.
+        let mut closed = false;
         for _ in 0..MAX_FRAMES_PER_TICK {
             let frame = match bus.recv(Duration::ZERO) {
                 Ok(Some(f)) => f,
@@ -344,14 +347,14 @@ impl Firmware {
                 Ok((_, device)) if device != self.config.device => {
                     self.stats.foreign_frames += 1;
                 }
-                Ok((cmd, _)) => {
-                    if self.apply(bus, cmd, plant) == Tick::BusClosed {
-                        return Tick::BusClosed;
-                    }
-                }
+                Ok((cmd, _)) => closed |= self.apply(bus, cmd, plant) == Tick::BusClosed,
             }
         }
-        Tick::Continue
+        if closed {
+            Tick::BusClosed
+        } else {
+            Tick::Continue
+        }
     }
 
     /// Send what the streams owe at this tick.
@@ -398,6 +401,9 @@ impl Firmware {
         }
         self.stats.silent = self.silent();
         if !self.stats.silent && self.stream(bus, plant) == Tick::BusClosed {
+            // The host went between the read and the stream: what it sent before going (its
+            // shutdown) is still in the queue, and still applied.
+            let _ = self.read(bus, plant);
             return Tick::BusClosed;
         }
         // The queue holds `delay_steps` entries between ticks: what was read at this tick

@@ -14,7 +14,6 @@
 //! [`runner`] (its real-time thread and the handle), [`joint_model`] (the joint-model plant),
 //! and [`world_link`].
 
-
 use dips_world::hand::ObjectPose;
 use dips_world::kinematics::HandJoints;
 

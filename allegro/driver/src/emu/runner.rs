@@ -145,6 +145,8 @@ fn run(
     shared: &Mutex<Shared>,
     stop: &AtomicBool,
 ) -> Result<EmulatorReport, PlantError> {
+    // Real time like the hand's own firmware: a late sub-step is a late pose set.
+    let _ = crate::realtime::make_realtime(crate::realtime::EMULATOR_PRIORITY);
     let dt = Duration::from_secs_f64(config.physics_dt);
     let mut fw = Firmware::new(config);
     let mut origin = Instant::now();

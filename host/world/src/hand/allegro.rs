@@ -202,10 +202,16 @@ impl AllegroOptions {
         }
         if let AllegroBus::Interface(iface) = &o.bus {
             if let Some(f) = o.faults.first() {
-                return Err(BadAllegro::EmulatedOnly(format!("fault={f}"), "injected faults"));
+                return Err(BadAllegro::EmulatedOnly(
+                    format!("fault={f}"),
+                    "injected faults",
+                ));
             }
             if o.pose == Some(PoseSource::Truth) {
-                return Err(BadAllegro::EmulatedOnly("pose=truth".into(), "simulated object"));
+                return Err(BadAllegro::EmulatedOnly(
+                    "pose=truth".into(),
+                    "simulated object",
+                ));
             }
             let _ = iface;
         }

@@ -221,7 +221,9 @@ impl Hands for WorldHands {
     ) -> Result<Box<dyn Hand>, HandError> {
         match kind {
             HandKind::World => open_world(scene, options),
-            other => Err(HandError::NotInBinary { kind: other.clone() }),
+            other => Err(HandError::NotInBinary {
+                kind: other.clone(),
+            }),
         }
     }
 }
@@ -232,18 +234,32 @@ mod tests {
 
     #[test]
     fn names_round_trip_and_unknown_ones_list_the_allowed() {
-        for name in ["world", "mujoco", "allegro:emulated", "allegro:can0,pose=file:p.jsonl"] {
+        for name in [
+            "world",
+            "mujoco",
+            "allegro:emulated",
+            "allegro:can0,pose=file:p.jsonl",
+        ] {
             let k: HandKind = name.parse().unwrap();
             assert_eq!(k.to_string(), name);
             let json = serde_json::to_string(&k).unwrap();
             assert_eq!(json, format!("\"{name}\""));
             assert_eq!(serde_json::from_str::<HandKind>(&json).unwrap(), k);
         }
-        assert_eq!("allegro:emulated".parse::<HandKind>().unwrap().name(), "allegro");
+        assert_eq!(
+            "allegro:emulated".parse::<HandKind>().unwrap().name(),
+            "allegro"
+        );
         let e = "isaac".parse::<HandKind>().unwrap_err().to_string();
-        assert_eq!(e, "unknown hand `isaac` (allowed: world, mujoco, allegro:IFACE)");
+        assert_eq!(
+            e,
+            "unknown hand `isaac` (allowed: world, mujoco, allegro:IFACE)"
+        );
         let e = "allegro".parse::<HandKind>().unwrap_err().to_string();
-        assert!(e.starts_with("hand allegro: `allegro`: name the bus"), "{e}");
+        assert!(
+            e.starts_with("hand allegro: `allegro`: name the bus"),
+            "{e}"
+        );
         let e = "host/data/allegro_v4.json"
             .parse::<HandKind>()
             .unwrap_err()
