@@ -85,13 +85,14 @@ impl HandArgs {
             .hand
             .parse()
             .map_err(|e| anyhow::anyhow!("--hand {}: {e}", bus.hand))?;
-        let HandKind::Allegro(mut o) = kind else {
+        let HandKind::Allegro(o) = kind else {
             anyhow::bail!(
                 "--hand {}: dips hand brings up the Allegro hand (allegro:IFACE or \
                  allegro:emulated)",
                 bus.hand
             );
         };
+        let mut o = *o;
         o.dry_run |= bus.dry_run;
         Ok(o)
     }

@@ -70,7 +70,7 @@ impl Command {
     pub fn hand(&self) -> Option<HandKind> {
         match self {
             Command::Episode(a) => Some(a.hand.kind()),
-            Command::Hand(a) => Some(HandKind::Allegro(a.options().ok()?)),
+            Command::Hand(a) => Some(HandKind::Allegro(Box::new(a.options().ok()?))),
             // Without `--hand`, a protocol's hand (an unreadable protocol fails later, with
             // its own message).
             Command::Eval(a) => a.hand.hand.clone().or_else(|| {

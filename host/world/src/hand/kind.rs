@@ -26,8 +26,9 @@ pub enum HandKind {
     /// MuJoCo 3.17 with the 333 Hz host PD (`dips_mujoco::MujocoHand`).
     Mujoco,
     /// The Allegro Hand V4 through its CAN driver (`dips_allegro`): a real hand on a
-    /// SocketCAN interface, or the emulated one.
-    Allegro(AllegroOptions),
+    /// SocketCAN interface, or the emulated one (boxed: the options are large beside the
+    /// other kinds).
+    Allegro(Box<AllegroOptions>),
 }
 
 impl HandKind {
@@ -107,7 +108,7 @@ impl FromStr for HandKind {
             _ => {}
         }
         if let Some(spec) = s.strip_prefix("allegro:") {
-            return Ok(HandKind::Allegro(AllegroOptions::parse(spec)?));
+            return Ok(HandKind::Allegro(Box::new(AllegroOptions::parse(spec)?)));
         }
         // `dips sim run --hand FILE` was the hand description before `--hand` named the hand.
         if s.contains('/') || s.contains('\\') || s.ends_with(".json") {
