@@ -2,14 +2,19 @@
 //! hand, on a real bus (`--hand allegro:can0`) or the emulated hand (`allegro:emulated`, the
 //! default): the hand's information and serial, temperatures, live joint angles and the loop's
 //! timing, and a slow move to a task's start pose. `--dry-run` prints every frame the driver
-//! sends instead of opening the bus (the emulated hand answers).
+//! sends instead of opening the bus (the emulated hand answers). `dips hand emulate` runs the
+//! emulated hand as a process of its own on a SocketCAN interface (`vcan0`), for a driver in
+//! another process (or another program) to drive.
 
 use std::time::{Duration, Instant};
 
 use anyhow::Context;
 use clap::{Args, Subcommand};
+use dips_allegro::emu::{Emulator, EmulatorConfig};
 use dips_allegro::hand::Connection;
-use dips_world::hand::{AllegroOptions, HandKind};
+use dips_world::hand::{
+    AllegroBus, AllegroOptions, EmulatedPlant, EmulatorFault, GainsChoice, HandKind,
+};
 use dips_world::kinematics::{Finger, HandJoints};
 use dips_world::scenes::SceneKind;
 use dips_world::world::World;
@@ -68,19 +73,44 @@ pub enum HandAction {
         #[arg(long, default_value = "card")]
         task: SceneKind,
     },
+    /// Run the emulated hand on a SocketCAN interface until Ctrl-C (or `--seconds`): it
+    /// answers the V4 protocol there as a hand would.
+    Emulate {
+        /// The interface (`vcan0`: `ip link add vcan0 type vcan; ip link set vcan0 up`).
+        #[arg(long)]
+        iface: String,
+        /// The task scene the hand starts in.
+        #[arg(long, default_value = "card")]
+        task: SceneKind,
+        /// What moves its joints: `joint-model` or `mujoco` (dips-mujoco).
+        #[arg(long, default_value = "joint-model")]
+        plant: EmulatedPlant,
+        /// Faults to inject (`silence@T`, `garbage`, `hot@T`; repeatable).
+        #[arg(long)]
+        fault: Vec<EmulatorFault>,
+        /// Stop after this long (s); default: until Ctrl-C.
+        #[arg(long)]
+        seconds: Option<f64>,
+    },
 }
 
 impl HandArgs {
-    fn bus(&self) -> &BusArgs {
-        match &self.action {
+    /// The hand's options, `--dry-run` included (`emulate`: the emulated hand it runs).
+    pub fn options(&self) -> anyhow::Result<AllegroOptions> {
+        let bus = match &self.action {
             HandAction::Info(b) => b,
             HandAction::Monitor { bus, .. } | HandAction::Home { bus, .. } => bus,
-        }
-    }
-
-    /// The hand's options, `--dry-run` included.
-    pub fn options(&self) -> anyhow::Result<AllegroOptions> {
-        let bus = self.bus();
+            HandAction::Emulate { plant, fault, .. } => {
+                return Ok(AllegroOptions {
+                    bus: AllegroBus::Emulated,
+                    gains: GainsChoice::Vendor,
+                    pose: None,
+                    faults: fault.clone(),
+                    plant: *plant,
+                    dry_run: false,
+                });
+            }
+        };
         let kind: HandKind = bus
             .hand
             .parse()
@@ -128,6 +158,15 @@ fn temperatures(c: &Connection) -> String {
 /// Run `dips hand`.
 pub fn run(args: HandArgs, hands: &dyn CliHands) -> anyhow::Result<()> {
     let options = args.options()?;
+    if let HandAction::Emulate {
+        iface,
+        task,
+        seconds,
+        ..
+    } = &args.action
+    {
+        return emulate(iface, *task, *seconds, &options, hands);
+    }
     let scene = match &args.action {
         HandAction::Home { task, .. } => *task,
         _ => SceneKind::Card,
@@ -201,6 +240,8 @@ fn act(action: &HandAction, conn: &Connection, scene: SceneKind) -> anyhow::Resu
                 );
             }
         }
+        // `run` runs the emulator before any connection is opened.
+        HandAction::Emulate { .. } => {}
         HandAction::Home { .. } => {
             let start = World::new(scene).joints();
             eprintln!(
@@ -221,4 +262,44 @@ fn act(action: &HandAction, conn: &Connection, scene: SceneKind) -> anyhow::Resu
         }
     }
     Ok(())
+}
+
+/// `dips hand emulate`: the emulated hand on a SocketCAN interface.
+fn emulate(
+    iface: &str,
+    scene: SceneKind,
+    seconds: Option<f64>,
+    options: &AllegroOptions,
+    hands: &dyn CliHands,
+) -> anyhow::Result<()> {
+    #[cfg(target_os = "linux")]
+    {
+        let bus = dips_allegro::bus::socketcan::SocketCanBus::open(iface)?;
+        let plant = (hands.allegro_plant(options.plant))(scene, World::new(scene).joints())?;
+        let config = EmulatorConfig {
+            faults: options.faults.clone(),
+            ..EmulatorConfig::default()
+        };
+        let emu = Emulator::new(Box::new(bus), plant, config).spawn()?;
+        eprintln!(
+            "emulated Allegro hand ({}, {}) on {iface}; Ctrl-C stops it",
+            options.plant,
+            scene.name()
+        );
+        let end = seconds.map(|s| Instant::now() + Duration::from_secs_f64(s.max(0.0)));
+        while emu.is_running() && end.is_none_or(|e| Instant::now() < e) {
+            std::thread::sleep(Duration::from_millis(50));
+        }
+        let report = emu.shutdown()?;
+        eprintln!(
+            "emulator: {} frames received ({} bad), {} pose sets sent",
+            report.stats.frames_received, report.stats.bad_frames, report.stats.pose_sets_sent
+        );
+        Ok(())
+    }
+    #[cfg(not(target_os = "linux"))]
+    {
+        let _ = (scene, seconds, options, hands);
+        anyhow::bail!("dips hand emulate --iface {iface}: SocketCAN needs Linux")
+    }
 }

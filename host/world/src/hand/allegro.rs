@@ -28,6 +28,34 @@ pub enum EmulatedPlant {
     Mujoco,
 }
 
+impl EmulatedPlant {
+    /// The plant's name, as `plant=` spells it.
+    pub fn name(self) -> &'static str {
+        match self {
+            EmulatedPlant::JointModel => "joint-model",
+            EmulatedPlant::Mujoco => "mujoco",
+        }
+    }
+}
+
+impl FromStr for EmulatedPlant {
+    type Err = BadAllegro;
+
+    fn from_str(s: &str) -> Result<EmulatedPlant, BadAllegro> {
+        match s {
+            "joint-model" => Ok(EmulatedPlant::JointModel),
+            "mujoco" => Ok(EmulatedPlant::Mujoco),
+            _ => Err(BadAllegro::UnknownOption(format!("plant={s}"))),
+        }
+    }
+}
+
+impl fmt::Display for EmulatedPlant {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
 /// The PD gains to run.
 #[derive(Debug, Clone, PartialEq, Eq, Hash)]
 pub enum GainsChoice {
@@ -194,8 +222,7 @@ impl AllegroOptions {
                 }
                 Some(("pose", p)) => o.pose = Some(p.parse()?),
                 Some(("fault", f)) => o.faults.push(f.parse()?),
-                Some(("plant", "joint-model")) => o.plant = EmulatedPlant::JointModel,
-                Some(("plant", "mujoco")) => o.plant = EmulatedPlant::Mujoco,
+                Some(("plant", p)) => o.plant = p.parse()?,
                 None if part == "dry-run" => o.dry_run = true,
                 _ => return Err(BadAllegro::UnknownOption(part.to_string())),
             }
