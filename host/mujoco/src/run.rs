@@ -106,7 +106,7 @@ pub fn run_csvto_modes(
         .iter()
         .map(|m| parse_mode(scene, m))
         .collect::<Result<Vec<_>, _>>()?;
-    let mut hand = MujocoHands.open(kind, scene, &HandOptions::default())?;
+    let mut hand = MujocoHands.open(&kind, scene, &HandOptions::default())?;
     let model = dips_world::kinematics::HandModel::allegro_v4();
     let settings = ExecSettings::for_task(scene);
     let mut rng = dips_kernel::rng::KernelRng::seed_from_u64(seed);

@@ -303,10 +303,10 @@ fn example_commands_run_on_both_hands() {
         let dq: Vec<Vec<f64>> = serde_json::from_value(v["dq"].clone()).expect("dq");
         for kind in [HandKind::World, HandKind::Mujoco] {
             let mut hand = MujocoHands
-                .open(kind, scene, &HandOptions::default())
+                .open(&kind, scene, &HandOptions::default())
                 .expect("hand");
             let t = Instant::now();
-            let traj = run_commands_on(hand.as_mut(), &dq, kind);
+            let traj = run_commands_on(hand.as_mut(), &dq, kind.clone());
             let seconds = t.elapsed().as_secs_f64();
             assert_eq!(traj.error, None);
             assert_eq!(traj.states.len(), dq.len() + 1);
