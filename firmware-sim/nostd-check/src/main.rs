@@ -367,7 +367,38 @@ fn plan_once(
     Ok(PlanReply::from(&report))
 }
 
+/// The Allegro protocol without std: a real session's SET_TORQUE frame and pose reply, both
+/// ways.
+fn allegro_frames() -> Result<(), Failure> {
+    use dips_allegro_protocol::{CanFrame, DeviceId, HandReply, HostCommand};
+    use embedded_can::{Frame as _, StandardId};
+    let d0 = DeviceId::DEFAULT;
+    let cmd = HostCommand::SetTorque {
+        finger: 0,
+        pwm: [2, 203, 66, 37],
+    };
+    let f: CanFrame = cmd.to_frame(d0).ok_or(Failure("allegro: no torque frame"))?;
+    check(f.raw_id() == 0x180, "allegro: torque id")?;
+    check(
+        f.data() == [0x02, 0x00, 0xCB, 0x00, 0x42, 0x00, 0x25, 0x00],
+        "allegro: torque bytes",
+    )?;
+    let id = StandardId::new(0x08C).ok_or(Failure("allegro: id"))?;
+    let pose = CanFrame::new(id, &[0x34, 0x0A, 0xEF, 0xFF, 0xAF, 0x00, 0xFC, 0xFF])
+        .ok_or(Failure("allegro: pose frame"))?;
+    let reply = HandReply::from_frame(&pose).map_err(|_| Failure("allegro: pose decode"))?;
+    check(
+        reply.0
+            == HandReply::FingerPose {
+                finger: 3,
+                counts: [2612, -17, 175, -4],
+            },
+        "allegro: pose counts",
+    )
+}
+
 fn self_test(line: &mut Line) -> Result<(), Failure> {
+    allegro_frames()?;
     let request = request();
     check(request.start_state.len() == 12, "start state")?;
     let received = through_the_wire(1, &ToKernel::PlanRequest(request.clone()))?;
@@ -423,7 +454,7 @@ fn self_test(line: &mut Line) -> Result<(), Failure> {
 
     let _ = write!(
         line,
-        "dips-nostd-check: kernel and firmware core linked without std; firmware session \
+        "dips-nostd-check: kernel, firmware core and Allegro protocol linked without std; firmware session \
          answered; plan found:"
     );
     for &m in &reply.modes {
