@@ -22,7 +22,12 @@ fn the_driver_moves_the_mujoco_hand_and_reports_its_loop() {
     hand.command(&target).unwrap();
     hand.command(&target).unwrap();
     let q = hand.joint_positions();
-    assert!((q[0][2] - target[0][2]).abs() < 0.03, "{} vs {}", q[0][2], target[0][2]);
+    assert!(
+        (q[0][2] - target[0][2]).abs() < 0.03,
+        "{} vs {}",
+        q[0][2],
+        target[0][2]
+    );
     let c1 = hand.object_pose().coords;
     assert!(c0.iter().chain(&c1).all(|x| x.is_finite()));
     let r = hand.report().unwrap();
