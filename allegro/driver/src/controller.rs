@@ -3,7 +3,7 @@
 //! limits, PD towards the reference, clamp, send the four SET_TORQUE frames. The reference
 //! moves linearly from the last goal to the new one over each action ([`Controller::move_to`]).
 //!
-//! The loop owns the bus inside a [`ShutdownGuard`]: whatever ends the loop (a [`Stop`], a
+//! The loop owns the bus inside a guard (`ShutdownGuard`): whatever ends the loop (a [`Stop`], a
 //! request, Ctrl-C, a panic in the loop, the [`Controller`] dropped during a panic elsewhere)
 //! the guard sends zero torques, `SYSTEM_OFF` and `SET_PERIOD {0, 0, 0}` before the thread
 //! ends.

@@ -29,7 +29,7 @@ pub const ACTION: Duration = Duration::from_secs(1);
 /// How long a pose from a UDP tracker stays fresh.
 pub const POSE_MAX_AGE: Duration = Duration::from_millis(500);
 /// The speed of a move to the start pose (rad/s of the joint that moves most), at least 1 s.
-const HOMING_RAD_PER_S: f64 = 0.5;
+pub const HOMING_RAD_PER_S: f64 = 0.5;
 
 /// Why an Allegro hand could not be opened.
 #[derive(Debug, thiserror::Error)]

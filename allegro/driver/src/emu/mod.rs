@@ -12,7 +12,7 @@
 //!
 //! Modules: [`firmware`] (the protocol state machine, its configuration and counters),
 //! [`runner`] (its real-time thread and the handle), [`joint_model`] (the joint-model plant),
-//! and [`world_link`].
+//! and `world_link` (how the joint model reaches its world).
 
 use dips_world::hand::ObjectPose;
 use dips_world::kinematics::HandJoints;
