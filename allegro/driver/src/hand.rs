@@ -10,7 +10,7 @@ use dips_allegro_protocol::DeviceId;
 use dips_world::hand::{
     AllegroBus, AllegroOptions, BadAllegro, GainsChoice, Hand, HandError, ObjectPose, PoseSource,
 };
-use dips_world::kinematics::{Finger, HandJoints, HandModel};
+use dips_world::kinematics::{HandJoints, HandModel, first_non_finite, max_joint_difference};
 use dips_world::scenes::SceneKind;
 use dips_world::world::{World, WorldError};
 use serde_json::json;
@@ -190,13 +190,7 @@ impl Connection {
     /// Move slowly to `q` (at most [`HOMING_RAD_PER_S`] on the joint that moves most, at least
     /// 1 s) and wait for it.
     pub fn home(&self, q: &HandJoints) -> Result<(), Stop> {
-        let now = self.controller.joints();
-        let far = now
-            .iter()
-            .flatten()
-            .zip(q.iter().flatten())
-            .map(|(a, b)| (a - b).abs())
-            .fold(0.0, f64::max);
+        let far = max_joint_difference(&self.controller.joints(), q);
         let duration = Duration::from_secs_f64((far / HOMING_RAD_PER_S).max(1.0));
         self.controller.move_to(q, &self.model, duration);
         self.controller.wait_until(Instant::now() + duration)
@@ -321,16 +315,11 @@ impl Hand for AllegroHand {
     }
 
     fn command(&mut self, targets: &HandJoints) -> Result<(), HandError> {
-        if let Some((index, value)) = targets
-            .iter()
-            .flatten()
-            .enumerate()
-            .find(|(_, v)| !v.is_finite())
-        {
+        if let Some((index, value)) = first_non_finite(targets) {
             return Err(HandError::World(WorldError::NonFinite {
                 what: "joint target",
                 index,
-                value: *value,
+                value,
             }));
         }
         let t0 = Instant::now();
@@ -340,10 +329,7 @@ impl Hand for AllegroHand {
             .map_err(stop_error)?;
         let goal = self.controller.goal();
         let q = self.controller.joints();
-        let err = Finger::ALL
-            .iter()
-            .flat_map(|f| (0..4).map(move |j| (goal[f.index()][j] - q[f.index()][j]).abs()))
-            .fold(0.0, f64::max);
+        let err = max_joint_difference(&goal, &q);
         self.tracking.actions += 1;
         self.tracking.sum_max += err;
         self.tracking.worst = self.tracking.worst.max(err);

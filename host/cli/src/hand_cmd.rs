@@ -15,7 +15,7 @@ use dips_allegro::hand::Connection;
 use dips_world::hand::{
     AllegroBus, AllegroOptions, EmulatedPlant, EmulatorFault, GainsChoice, HandKind,
 };
-use dips_world::kinematics::{Finger, HandJoints};
+use dips_world::kinematics::{Finger, HandJoints, max_joint_difference};
 use dips_world::scenes::SceneKind;
 use dips_world::world::World;
 
@@ -251,12 +251,7 @@ fn act(action: &HandAction, conn: &Connection, scene: SceneKind) -> anyhow::Resu
             conn.home(&start)?;
             c.wait_until(Instant::now() + Duration::from_secs(1))?;
             let q = c.joints();
-            let err = q
-                .iter()
-                .flatten()
-                .zip(start.iter().flatten())
-                .map(|(a, b)| (a - b).abs())
-                .fold(0.0, f64::max);
+            let err = max_joint_difference(&q, &start);
             println!("home: {}", degrees(&q));
             println!("largest error after 1 s hold: {:.4} rad", err);
         }

@@ -6,7 +6,7 @@
 use std::sync::Arc;
 
 use dips_world::hand::{Hand, HandError, ObjectPose};
-use dips_world::kinematics::{Finger, HandJoints, HandModel};
+use dips_world::kinematics::{Finger, HandJoints, HandModel, first_non_finite};
 use dips_world::scenes::{SceneKind, screwdriver};
 use dips_world::world::{ContactReport, World, WorldError};
 use mujoco_rs::prelude::*;
@@ -392,16 +392,8 @@ impl MujocoHand {
     /// Allegro hand does under the torques its driver sends. Gravity acts; the driver's own
     /// gravity compensation, when on, is in `torques`. The tracker's pose is refreshed after.
     pub fn step_torques(&mut self, torques: &HandJoints, dt: f64) -> Result<(), MujocoError> {
-        if let Some((index, value)) = torques
-            .iter()
-            .flatten()
-            .enumerate()
-            .find(|(_, v)| !v.is_finite())
-        {
-            return Err(MujocoError::Target {
-                index,
-                value: *value,
-            });
+        if let Some((index, value)) = first_non_finite(torques) {
+            return Err(MujocoError::Target { index, value });
         }
         let steps = (dt / self.params.timestep()).round().max(1.0) as usize;
         let warnings = self.warnings();
@@ -430,16 +422,8 @@ impl MujocoHand {
     /// linearly from the last target over the action. On divergence the state is left as
     /// MuJoCo reset it and the error says so.
     pub fn run_action(&mut self, targets: &HandJoints) -> Result<(), MujocoError> {
-        if let Some((index, value)) = targets
-            .iter()
-            .flatten()
-            .enumerate()
-            .find(|(_, v)| !v.is_finite())
-        {
-            return Err(MujocoError::Target {
-                index,
-                value: *value,
-            });
+        if let Some((index, value)) = first_non_finite(targets) {
+            return Err(MujocoError::Target { index, value });
         }
         let goal: HandJoints =
             Finger::ALL.map(|f| self.hand.clamp_to_limits(f, &targets[f.index()]));

@@ -177,6 +177,25 @@ pub struct FingerFrames {
     pub tip_center: Point3<f64>,
 }
 
+/// The first joint value of `q` that is NaN or infinite, with its finger-major index (what a
+/// hand refuses as a target or a torque).
+pub fn first_non_finite(q: &HandJoints) -> Option<(usize, f64)> {
+    q.iter()
+        .flatten()
+        .copied()
+        .enumerate()
+        .find(|(_, v)| !v.is_finite())
+}
+
+/// The largest absolute difference between two sets of joint values.
+pub fn max_joint_difference(a: &HandJoints, b: &HandJoints) -> f64 {
+    a.iter()
+        .flatten()
+        .zip(b.iter().flatten())
+        .map(|(x, y)| (x - y).abs())
+        .fold(0.0, f64::max)
+}
+
 /// Link masses (kg) of an index/middle/ring finger, proximal to distal (the distal entry
 /// includes the fingertip). Our hand file has no masses; these are of the order of the
 /// Allegro v4 URDF's (`docs/mujoco.md`). The MuJoCo scene and the Allegro driver's gravity

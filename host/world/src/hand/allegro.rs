@@ -227,7 +227,7 @@ impl AllegroOptions {
                 _ => return Err(BadAllegro::UnknownOption(part.to_string())),
             }
         }
-        if let AllegroBus::Interface(iface) = &o.bus {
+        if o.bus != AllegroBus::Emulated {
             if let Some(f) = o.faults.first() {
                 return Err(BadAllegro::EmulatedOnly(
                     format!("fault={f}"),
@@ -240,7 +240,6 @@ impl AllegroOptions {
                     "simulated object",
                 ));
             }
-            let _ = iface;
         }
         Ok(o)
     }
